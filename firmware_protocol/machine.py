@@ -1,0 +1,249 @@
+"""The machine file: one TOML file per machine, its checked form, and its geometry.
+
+This is a codec shared by both sides: the host plans moves for the machine it
+describes, and the simulated machine builds its ring, pins and head from it.
+Every key is checked at this edge (Klipper-style): unknown keys are typos,
+values have types and bounds, and an error names the key and the expected form.
+
+Bundled machines live in the top-level ``machines/`` folder (installed as the
+package data ``firmware_protocol.machines``); ``find_machine_file("grbl-ring")``
+finds them, a path finds the user's own.
+"""
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = [
+    "MachineFileError", "Machine", "load_machine", "find_machine_file", "bundled_machines",
+    "AXES",
+]
+
+#: Axis letters each dialect can drive.
+AXES = {"grbl": "XYZ", "grblhal": "XYZABC", "marlin": "XYZABC"}
+
+
+class MachineFileError(ValueError):
+    """A machine file is missing, unreadable or breaks the contract (exit 2 on the CLI)."""
+
+
+class _Key:
+    """One key of the schema: its type, bounds, choices and default (``...`` = required)."""
+
+    def __init__(self, kind, default=..., *, lo=None, hi=None, lo_open=False, choices=None, doc=""):
+        self.kind, self.default, self.lo, self.hi = kind, default, lo, hi
+        self.lo_open, self.choices, self.doc = lo_open, choices, doc
+
+    def expected(self):
+        if self.choices:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        name = {float: "a number", int: "an integer", str: "a string", bool: "true or false",
+                list: "a list"}[self.kind]
+        if self.lo is not None and self.hi is not None:
+            return f"{name} {'>' if self.lo_open else '>='} {self.lo} and <= {self.hi}"
+        if self.lo is not None:
+            return f"{name} {'>' if self.lo_open else '>='} {self.lo}"
+        return name
+
+    def check(self, value, where):
+        ok_type = (isinstance(value, (int, float)) and not isinstance(value, bool)
+                   if self.kind is float else
+                   isinstance(value, self.kind) and not (self.kind is int and isinstance(value, bool)))
+        if not ok_type:
+            raise MachineFileError(f"{where} is {value!r}; expected {self.expected()}")
+        if self.kind is float:
+            value = float(value)
+            if not math.isfinite(value):
+                raise MachineFileError(f"{where} is {value!r}; expected {self.expected()}")
+        if self.choices and value not in self.choices:
+            raise MachineFileError(f"{where} is {value!r}; expected {self.expected()}")
+        if self.lo is not None and (value <= self.lo if self.lo_open else value < self.lo):
+            raise MachineFileError(f"{where} is {value!r}; expected {self.expected()}")
+        if self.hi is not None and value > self.hi:
+            raise MachineFileError(f"{where} is {value!r}; expected {self.expected()}")
+        return value
+
+
+#: The schema: section -> key -> _Key.  "" is the top level.
+SCHEMA = {
+    "": {
+        "name": _Key(str),
+        "description": _Key(str, ""),
+    },
+    "ring": {
+        "pins": _Key(int, lo=3, hi=5000),
+        "diameter_mm": _Key(float, lo=10.0, hi=5000.0),
+        "pin_diameter_mm": _Key(float, lo=0.0, hi=20.0, lo_open=True),
+        "pin0_angle_deg": _Key(float, 0.0, lo=-36000.0, hi=36000.0),
+        "travel_deg": _Key(float, 36000.0, lo=360.0, hi=1e7,
+                           doc="the ring axis stays within pin0_angle_deg +- travel_deg"),
+        "feed_deg_per_min": _Key(float, 36000.0, lo=0.0, hi=1e7, lo_open=True),
+        "accel_deg_per_s2": _Key(float, 720.0, lo=0.0, hi=1e7, lo_open=True),
+    },
+    "head": {
+        "in_mm": _Key(float, lo=-1000.0, hi=1000.0),
+        "out_mm": _Key(float, lo=-1000.0, hi=1000.0),
+        "feed_mm_per_min": _Key(float, 3000.0, lo=0.0, hi=1e6, lo_open=True),
+        "accel_mm_per_s2": _Key(float, 500.0, lo=0.0, hi=1e6, lo_open=True),
+    },
+    "controller": {
+        "kind": _Key(str, choices=("gcode", "dynamixel")),
+        "dialect": _Key(str, None, choices=("grbl", "grblhal", "marlin")),
+        "ring_axis": _Key(str, None),
+        "head_axis": _Key(str, None),
+        "baud": _Key(int, 115200, lo=1200, hi=4_000_000),
+        "homing": _Key(bool, False, doc="home ($H / G28) before winding"),
+    },
+    "thread": {
+        "diameter_mm": _Key(float, lo=0.0, hi=5.0, lo_open=True),
+    },
+}
+
+
+@dataclass(frozen=True)
+class Machine:
+    """A checked machine definition.
+
+    ``values`` maps ``"section.key"`` (top-level keys without a section) to the
+    checked value, defaults filled in.  The geometry of DESIGN.md's physical
+    model is derived here so that the host and the simulator agree on it.
+    """
+
+    name: str
+    path: str
+    values: dict
+
+    def __getitem__(self, dotted):
+        return self.values[dotted]
+
+    @property
+    def pins(self):
+        return self.values["ring.pins"]
+
+    @property
+    def pitch_deg(self):
+        """Angle between neighbouring pins."""
+        return 360.0 / self.pins
+
+    @property
+    def pitch_mm(self):
+        """Arc length between neighbouring pin centres."""
+        return math.pi * self.values["ring.diameter_mm"] / self.pins
+
+    @property
+    def free_gap_mm(self):
+        """Room left between two pins once the thread is in the gap."""
+        return self.pitch_mm - self.values["ring.pin_diameter_mm"] - self.values["thread.diameter_mm"]
+
+    @property
+    def gap_tolerance_deg(self):
+        """How far from a gap's centre the head may cross the pin circle, in ring degrees."""
+        return (self.free_gap_mm / 2.0) / (math.pi * self.values["ring.diameter_mm"]) * 360.0
+
+    @property
+    def circle_mm(self):
+        """Head axis position at which the eyelet crosses the pin circle (midway IN to OUT)."""
+        return (self.values["head.in_mm"] + self.values["head.out_mm"]) / 2.0
+
+    def pin_angle(self, pin):
+        """Ring axis position (degrees) at which ``pin`` faces the head station."""
+        return self.values["ring.pin0_angle_deg"] + pin * self.pitch_deg
+
+
+def bundled_dir():
+    """The folder of bundled machine files (installed package data or the source tree)."""
+    here = Path(__file__).resolve().parent
+    for candidate in (here / "machines", here.parent / "machines"):
+        if candidate.is_dir() and any(candidate.glob("*.toml")):
+            return candidate
+    return here / "machines"
+
+
+def bundled_machines():
+    """Names of the bundled machines, sorted."""
+    return sorted(p.stem for p in bundled_dir().glob("*.toml"))
+
+
+def find_machine_file(name_or_path):
+    """Resolve ``--machine``: a bundled name (``grbl-ring``) or a path to a TOML file."""
+    text = str(name_or_path)
+    path = Path(text)
+    if path.suffix == ".toml" or "/" in text or "\\" in text:
+        if not path.is_file():
+            raise MachineFileError(f"machine file {text!r} does not exist; expected a TOML file "
+                                   f"or one of: {', '.join(bundled_machines())}")
+        return path
+    candidate = bundled_dir() / f"{text}.toml"
+    if not candidate.is_file():
+        raise MachineFileError(f"unknown machine {text!r}; expected one of: "
+                               f"{', '.join(bundled_machines())}, or a path to a .toml file")
+    return candidate
+
+
+def load_machine(name_or_path):
+    """Read and check a machine file.
+
+    Raises
+    ------
+    MachineFileError
+        Naming the file, the key and the expected form.
+    """
+    path = find_machine_file(name_or_path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise MachineFileError(f"machine file {str(path)!r} is not valid TOML: {exc}") from None
+    return machine_from_dict(doc, source=str(path))
+
+
+def machine_from_dict(doc, *, source="machine"):
+    """Check a decoded machine document against :data:`SCHEMA`."""
+    values = {}
+    for section, keys in SCHEMA.items():
+        table = doc if section == "" else doc.get(section)
+        if section and table is None:
+            raise MachineFileError(f"{source}: missing section [{section}]")
+        if not isinstance(table, dict):
+            raise MachineFileError(f"{source}: [{section}] is not a table; expected [{section}] with keys")
+        for key, spec in keys.items():
+            dotted = f"{section}.{key}" if section else key
+            where = f"{source}: {dotted}"
+            if key in table:
+                values[dotted] = spec.check(table[key], where)
+            elif spec.default is ...:
+                raise MachineFileError(f"{where} is missing; expected {spec.expected()}")
+            else:
+                values[dotted] = spec.default
+        extra = set(table) - set(keys) - (set(SCHEMA) if section == "" else set())
+        for key in sorted(extra):
+            dotted = f"{section}.{key}" if section else key
+            raise MachineFileError(f"{source}: unknown key {dotted!r} (a typo?); expected one of "
+                                   f"{', '.join(sorted(keys))}")
+    machine = Machine(name=values["name"], path=source, values=values)
+    _check_consistency(machine, source)
+    return machine
+
+
+def _check_consistency(m, source):
+    v = m.values
+    if v["head.in_mm"] == v["head.out_mm"]:
+        raise MachineFileError(f"{source}: head.in_mm equals head.out_mm ({v['head.in_mm']}); "
+                               "expected two different positions (IN inside the pin circle, OUT outside)")
+    if m.free_gap_mm <= 0:
+        raise MachineFileError(
+            f"{source}: the pins do not fit: pitch {m.pitch_mm:.3f} mm <= pin {v['ring.pin_diameter_mm']} mm "
+            f"+ thread {v['thread.diameter_mm']} mm; expected fewer pins, a larger ring or thinner pins")
+    if v["controller.kind"] == "gcode":
+        dialect = v["controller.dialect"]
+        if dialect is None:
+            raise MachineFileError(f"{source}: controller.dialect is missing; expected one of "
+                                   f"'grbl', 'grblhal', 'marlin' for kind = 'gcode'")
+        for key in ("controller.ring_axis", "controller.head_axis"):
+            axis = v[key]
+            if axis is None or len(axis) != 1 or axis not in AXES[dialect]:
+                raise MachineFileError(f"{source}: {key} is {axis!r}; expected one of "
+                                       f"{', '.join(AXES[dialect])} for dialect {dialect!r}")
+        if v["controller.ring_axis"] == v["controller.head_axis"]:
+            raise MachineFileError(f"{source}: controller.ring_axis and controller.head_axis are both "
+                                   f"{v['controller.ring_axis']!r}; expected two different axes")

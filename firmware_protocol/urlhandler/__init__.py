@@ -1,0 +1,1 @@
+"""pyserial URL handlers; ``protocol_sim.py`` serves ``sim://``."""

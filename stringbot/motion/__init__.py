@@ -1,0 +1,3 @@
+"""Motion: plan + machine -> hooking moves -> G-code (pure; no I/O)."""
+
+__all__ = []

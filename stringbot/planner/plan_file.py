@@ -1,0 +1,210 @@
+"""The plan file: the contract between the planner and everything else (DESIGN.md).
+
+A plan is JSON::
+
+    {"format": "stringbot-plan", "version": 1, "pins": 300, "frame": "circle",
+     "pin_xy": [[x, y], ...], "crop": {"cx": .., "cy": .., "r": ..},
+     "sequence": [0, 151, 17, ...], "method": "fitness", "parameters": {...},
+     "source": {"path": .., "sha256": .., "width": .., "height": ..}, "stats": {...}}
+
+A disconnected plan (``--disconnected``) has ``"connected": false`` and a chord
+set ``"chords": [[i, j], ...]`` instead of a sequence; it can be rendered and
+scored but not wound.  Unknown fields are ignored (kept in ``extra``); a wrong
+or missing required field is a :class:`~stringbot.errors.BadInput` naming it.
+"""
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._files import write_atomic
+from ..errors import BadInput
+
+__all__ = ["Plan", "read_plan", "write_plan", "FORMAT", "VERSION"]
+
+FORMAT = "stringbot-plan"
+VERSION = 1
+FRAMES = ("circle", "square")
+
+
+@dataclass
+class Plan:
+    """A planned thread painting.
+
+    Attributes
+    ----------
+    pins : int
+        Number of pins on the frame.
+    frame : {"circle", "square"}
+    pin_xy : ndarray of float, shape (pins, 2)
+        Pin positions normalised to the cropped square: x right, y down, in [0, 1].
+    crop : dict
+        ``{"cx", "cy", "r"}`` in source-image pixels.
+    sequence : list of int
+        Pins in winding order; each consecutive pair is a chord.  Empty when
+        ``connected`` is false.
+    method : str
+    parameters : dict
+        Every knob the planner used.
+    source : dict
+        ``{"path", "sha256", "width", "height"}`` of the source picture.
+    stats : dict
+        ``lines``, ``thread_diameters`` (thread length in ring diameters), ...
+    connected : bool
+        False for a chord set (``chords``) that cannot be wound.
+    chords : list of (int, int)
+        The chord set of a disconnected plan.
+    """
+
+    pins: int
+    frame: str
+    pin_xy: np.ndarray
+    crop: dict
+    sequence: list
+    method: str
+    parameters: dict = field(default_factory=dict)
+    source: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+    connected: bool = True
+    chords: list = field(default_factory=list)
+    extra: dict = field(default_factory=dict)
+
+    def chord_list(self):
+        """All chords as a list of ``(i, j)`` pairs, connected or not."""
+        if self.connected:
+            return list(zip(self.sequence[:-1], self.sequence[1:]))
+        return [tuple(c) for c in self.chords]
+
+    def to_json(self):
+        doc = dict(self.extra)
+        doc.update({
+            "format": FORMAT,
+            "version": VERSION,
+            "pins": int(self.pins),
+            "frame": self.frame,
+            "pin_xy": [[round(float(x), 6), round(float(y), 6)] for x, y in np.asarray(self.pin_xy)],
+            "crop": self.crop,
+            "connected": bool(self.connected),
+            "sequence": [int(p) for p in self.sequence],
+            "method": self.method,
+            "parameters": self.parameters,
+            "source": self.source,
+            "stats": self.stats,
+        })
+        if not self.connected:
+            doc["chords"] = [[int(i), int(j)] for i, j in self.chords]
+        return json.dumps(doc, indent=1, sort_keys=False) + "\n"
+
+    def sha256(self):
+        """Hash of what the machine would do: pins, frame and the chords, in order."""
+        h = hashlib.sha256()
+        h.update(json.dumps([self.pins, self.frame, self.connected, [int(p) for p in self.sequence],
+                             [[int(i), int(j)] for i, j in self.chords]]).encode())
+        return h.hexdigest()
+
+
+def write_plan(plan, path):
+    """Write ``plan`` to ``path`` atomically (temp file, fsync, rename)."""
+    write_atomic(path, plan.to_json())
+
+
+def _need(doc, key, types, where, expected):
+    if key not in doc:
+        raise BadInput(f"{where}: missing field {key!r}; expected {expected}")
+    value = doc[key]
+    if isinstance(value, bool) and bool not in (types if isinstance(types, tuple) else (types,)):
+        raise BadInput(f"{where}: field {key!r} is {value!r}; expected {expected}")
+    if not isinstance(value, types):
+        raise BadInput(f"{where}: field {key!r} is {type(value).__name__}; expected {expected}")
+    return value
+
+
+def _is_num(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def read_plan(path):
+    """Read and check a plan file.
+
+    Raises
+    ------
+    BadInput
+        If the file is missing, is not JSON, or breaks the contract; the message
+        names the field and the expected form.
+    """
+    path = Path(path)
+    where = f"plan {str(path)!r}"
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise BadInput(f"{where} does not exist") from None
+    except IsADirectoryError:
+        raise BadInput(f"{where} is a folder; expected a plan file (JSON)") from None
+    except (UnicodeDecodeError, OSError) as exc:
+        raise BadInput(f"{where} cannot be read as text: {exc}; expected a plan file (JSON)") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise BadInput(f"{where} is not JSON ({exc.msg} at line {exc.lineno}); expected a plan file") from None
+    return plan_from_json(doc, where=where)
+
+
+def plan_from_json(doc, *, where="plan"):
+    """Check a decoded plan document and build a :class:`Plan`."""
+    if not isinstance(doc, dict):
+        raise BadInput(f"{where}: top level is {type(doc).__name__}; expected a JSON object")
+    if doc.get("format") != FORMAT:
+        raise BadInput(f"{where}: field 'format' is {doc.get('format')!r}; expected {FORMAT!r}")
+    version = _need(doc, "version", int, where, "an integer")
+    if version != VERSION:
+        raise BadInput(f"{where}: version {version} is not one this stringbot reads; expected {VERSION}")
+    pins = _need(doc, "pins", int, where, "an integer >= 3")
+    if pins < 3:
+        raise BadInput(f"{where}: field 'pins' is {pins}; expected an integer >= 3")
+    frame = _need(doc, "frame", str, where, f"one of {', '.join(FRAMES)}")
+    if frame not in FRAMES:
+        raise BadInput(f"{where}: field 'frame' is {frame!r}; expected one of {', '.join(FRAMES)}")
+    pin_xy = _need(doc, "pin_xy", list, where, "a list of [x, y] pairs")
+    if len(pin_xy) != pins or not all(
+            isinstance(p, list) and len(p) == 2 and all(_is_num(v) and -1e-9 <= v <= 1 + 1e-9 for v in p)
+            for p in pin_xy):
+        raise BadInput(f"{where}: field 'pin_xy' must be {pins} pairs [x, y] with x and y in [0, 1]")
+    crop = _need(doc, "crop", dict, where, "an object {cx, cy, r}")
+    for k in ("cx", "cy", "r"):
+        if not _is_num(crop.get(k)):
+            raise BadInput(f"{where}: field 'crop.{k}' is {crop.get(k)!r}; expected a number")
+    connected = doc.get("connected", True)
+    if not isinstance(connected, bool):
+        raise BadInput(f"{where}: field 'connected' is {connected!r}; expected true or false")
+    sequence = _need(doc, "sequence", list, where, "a list of pin indices")
+    chords = []
+    if connected:
+        if len(sequence) < 2:
+            raise BadInput(f"{where}: field 'sequence' has {len(sequence)} pins; expected at least 2")
+        for k, p in enumerate(sequence):
+            if not isinstance(p, int) or isinstance(p, bool) or not 0 <= p < pins:
+                raise BadInput(f"{where}: sequence[{k}] is {p!r}; expected a pin index in 0..{pins - 1}")
+            if k and p == sequence[k - 1]:
+                raise BadInput(f"{where}: sequence[{k}] repeats pin {p}; expected no pin twice in a row")
+    else:
+        raw = _need(doc, "chords", list, where, "a list of [i, j] pin pairs")
+        for k, c in enumerate(raw):
+            if (not isinstance(c, list) or len(c) != 2
+                    or not all(isinstance(p, int) and not isinstance(p, bool) and 0 <= p < pins for p in c)
+                    or c[0] == c[1]):
+                raise BadInput(f"{where}: chords[{k}] is {c!r}; expected [i, j] with i != j in 0..{pins - 1}")
+            chords.append((c[0], c[1]))
+    method = _need(doc, "method", str, where, "a string")
+    parameters = _need(doc, "parameters", dict, where, "an object")
+    source = _need(doc, "source", dict, where, "an object {path, sha256, width, height}")
+    stats = _need(doc, "stats", dict, where, "an object")
+    known = {"format", "version", "pins", "frame", "pin_xy", "crop", "connected", "sequence",
+             "chords", "method", "parameters", "source", "stats"}
+    extra = {k: v for k, v in doc.items() if k not in known}
+    return Plan(pins=pins, frame=frame, pin_xy=np.asarray(pin_xy, dtype=float), crop=crop,
+                sequence=list(sequence), method=method, parameters=parameters, source=source,
+                stats=stats, connected=connected, chords=chords, extra=extra)

@@ -1,0 +1,3 @@
+"""Winding: the wind loop, the journal, resume."""
+
+__all__ = []

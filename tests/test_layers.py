@@ -1,0 +1,34 @@
+"""The dependency rules of DESIGN.md, checked mechanically by import-linter."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_import_contracts_hold():
+    exe = shutil.which("lint-imports")
+    assert exe, "import-linter is part of the test extra: pip install -e '.[test]'"
+    result = subprocess.run([exe, "--no-cache"], cwd=ROOT, capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "0 broken" in result.stdout
+
+
+def test_library_code_never_prints():
+    offenders = []
+    for path in (ROOT / "stringbot").rglob("*.py"):
+        if path.name == "cli.py":
+            continue
+        for n, line in enumerate(path.read_text().splitlines(), 1):
+            if line.lstrip().startswith("print("):
+                offenders.append(f"{path.relative_to(ROOT)}:{n}")
+    assert not offenders, "library code logs or returns; only cli.py prints: " + ", ".join(offenders)
+
+
+def test_modules_stay_small():
+    big = [f"{p.relative_to(ROOT)} ({n})" for p in list((ROOT / "stringbot").rglob("*.py"))
+           + list((ROOT / "firmware_protocol").rglob("*.py"))
+           if (n := len(p.read_text().splitlines())) > 600]
+    assert not big, "modules over 600 lines, split along a seam: " + ", ".join(big)
