@@ -94,6 +94,18 @@ SCHEMA = {
         "head_axis": _Key(str, None),
         "baud": _Key(int, 115200, lo=1200, hi=4_000_000),
         "homing": _Key(bool, False, doc="home ($H / G28) before winding"),
+        # kind = "dynamixel" (Protocol 2.0, X series); ignored for G-code machines
+        "protocol": _Key(float, 2.0, choices=(2.0,)),
+        "ring_id": _Key(int, 1, lo=0, hi=252),
+        "head_id": _Key(int, 2, lo=0, hi=252),
+        "model_number": _Key(int, None, lo=0, hi=65535, doc="expected model (ping); None = any X series"),
+        "ticks_per_turn": _Key(int, 4096, lo=16, hi=1_000_000),
+        "gear_ratio": _Key(float, 1.0, lo=0.0, hi=1000.0, lo_open=True,
+                           doc="servo turns per ring turn"),
+        "profile_velocity": _Key(int, 0, lo=0, hi=32767, doc="Profile Velocity (0.229 rpm units; 0 = max)"),
+        "profile_acceleration": _Key(int, 0, lo=0, hi=32767, doc="Profile Acceleration (214.577 rev/min^2)"),
+        "head_in_ticks": _Key(int, None, lo=0, hi=4095),
+        "head_out_ticks": _Key(int, None, lo=0, hi=4095),
     },
     "thread": {
         "diameter_mm": _Key(float, lo=0.0, hi=5.0, lo_open=True),
@@ -227,6 +239,14 @@ def machine_from_dict(doc, *, source="machine"):
 
 def _check_consistency(m, source):
     v = m.values
+    if v["controller.kind"] == "dynamixel":
+        for key in ("controller.head_in_ticks", "controller.head_out_ticks"):
+            if v[key] is None:
+                raise MachineFileError(f"{source}: {key} is missing; expected an integer 0..4095 "
+                                       "for kind = 'dynamixel'")
+        if v["controller.ring_id"] == v["controller.head_id"]:
+            raise MachineFileError(f"{source}: controller.ring_id and controller.head_id are both "
+                                   f"{v['controller.ring_id']}; expected two different servo ids")
     if v["head.in_mm"] == v["head.out_mm"]:
         raise MachineFileError(f"{source}: head.in_mm equals head.out_mm ({v['head.in_mm']}); "
                                "expected two different positions (IN inside the pin circle, OUT outside)")
