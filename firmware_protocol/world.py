@@ -1,0 +1,242 @@
+"""The simulator's physical machine: ring, pins, thread head and the thread.
+
+This is the ground truth that tests compare plans with (DESIGN.md, "The
+physical model").  It knows nothing of firmware or G-code: an emulator keeps
+the firmware's belief (machine position, lost on a reset) apart and calls
+:meth:`World.move` with *physical* positions for every motion segment it
+executes.
+
+Geometry
+--------
+Positions are physical axis values: ring degrees (pin ``i`` faces the head
+station at ``pin0_angle_deg + i * pitch_deg``, and the ring may turn many
+times, so angles are not wrapped) and head millimetres.  Internally the ring
+position is expressed in *pin units* ``p = (ring_deg - pin0_angle_deg) /
+pitch_deg``: pin ``k`` (``k`` any integer, pin ``k mod pins``) faces the
+station at ``p = k`` and the gap between pins ``k`` and ``k + 1`` at
+``p = k + 0.5``.
+
+The eyelet crosses the pin circle at ``machine.circle_mm`` (midway between
+``head.in_mm`` and ``head.out_mm``).  Its side is IN (towards ``in_mm``), OUT
+(towards ``out_mm``) or ON (exactly at the circle).  Every *contact* with the
+circle (arriving at it, or crossing it inside a segment) must happen within
+``machine.gap_tolerance_deg`` of a gap centre, and while the eyelet stays ON
+the circle the ring may only turn within that one gap's window; anything else
+is a collision with a pin.
+
+Wraps
+-----
+When the eyelet leaves the IN side and reaches the OUT side, the ring position
+``p_out`` where it left the circle is remembered; when it next comes back IN,
+at ``p_in``, every pin ``k`` with ``p_out < k < p_in`` (or ``p_in < k <
+p_out``) has passed behind the head and the thread now goes round its outside:
+each is a wrap, in the order the pins passed the station, with direction +1
+when the ring axis increased (``p_in > p_out``) and -1 when it decreased.  Out
+and back through the same gap wraps nothing, whatever the ring did in between
+(the thread slides back off the pins it passed and re-passed); a full turn
+while out wraps every pin.  The segment is a straight line in (ring, head), so
+a diagonal move crosses the circle at the one instant the head passes
+``circle_mm``, and the ring angle at that instant is what is checked.
+"""
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["World", "Wrap"]
+
+#: Numerical slack (in pin units) for positions computed by the G-code round trip.
+_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class Wrap:
+    """One pin the thread went round: ``pin`` index and ``direction`` (+1 ring axis up, -1 down)."""
+
+    pin: int
+    direction: int
+
+    def as_dict(self):
+        return {"pin": self.pin, "direction": self.direction}
+
+
+def _write_atomic(path, text):
+    """Write ``text`` to ``path``: temp file in the same folder, fsync, ``os.replace``."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+class World:
+    """The physical machine built from a :class:`~firmware_protocol.machine.Machine`.
+
+    Parameters
+    ----------
+    machine : firmware_protocol.machine.Machine
+        Geometry: pins, pitch, gap tolerance, head IN/OUT positions.
+    record_path : str or path-like, optional
+        If given, the JSON record (:meth:`record`) is rewritten atomically there
+        at the start and after every wrap and collision.
+
+    Notes
+    -----
+    The world starts with the ring at physical angle 0.0 deg, the head at
+    ``head.in_mm`` and no wraps.
+    """
+
+    def __init__(self, machine, *, record_path=None):
+        self.machine = machine
+        self.record_path = None if record_path is None else Path(record_path)
+        self._pins = machine.pins
+        self._pitch = machine.pitch_deg
+        self._pin0 = machine["ring.pin0_angle_deg"]
+        self._circle = machine.circle_mm
+        self._outward = 1.0 if machine["head.out_mm"] > machine["head.in_mm"] else -1.0
+        self._tol = machine.gap_tolerance_deg / self._pitch  # in pin units
+        self.ring_deg = 0.0
+        self.head_mm = float(machine["head.in_mm"])
+        self.wraps = []
+        self.collisions = []
+        self.moves = 0
+        self.ring_travel_deg = 0.0
+        self._side = -1             # last strict side: -1 IN, +1 OUT
+        self._p_out = None          # pin units where the eyelet left the circle outwards
+        if self.record_path is not None:
+            self._save()
+
+    # ---- queries ------------------------------------------------------------------------
+    def _side_of(self, head_mm):
+        d = (head_mm - self._circle) * self._outward
+        return 0 if d == 0 else (1 if d > 0 else -1)
+
+    @property
+    def head_out(self):
+        """True when the eyelet is strictly outside the pin circle."""
+        return self._side_of(self.head_mm) > 0
+
+    def pin_units(self, ring_deg):
+        """Ring axis degrees -> pin units (pin ``k`` faces the station at ``k``)."""
+        return (ring_deg - self._pin0) / self._pitch
+
+    def record(self):
+        """The world's record as a JSON-ready dict."""
+        return {
+            "machine": self.machine.name,
+            "pins": self._pins,
+            "wraps": [w.as_dict() for w in self.wraps],
+            "collisions": [dict(c) for c in self.collisions],
+            "moves": self.moves,
+            "ring_deg": self.ring_deg,
+            "head_mm": self.head_mm,
+            "head_out": self.head_out,
+            "ring_travel_deg": self.ring_travel_deg,
+        }
+
+    # ---- motion -------------------------------------------------------------------------
+    def move(self, ring_deg, head_mm):
+        """Move both axes in a straight line from the current physical position.
+
+        Parameters
+        ----------
+        ring_deg : float
+            Target ring angle, physical degrees (not wrapped).
+        head_mm : float
+            Target head position, mm.
+
+        Returns
+        -------
+        list of Wrap
+            The wraps this segment completed (also appended to :attr:`wraps`).
+        """
+        r0, h0 = self.ring_deg, self.head_mm
+        r1, h1 = float(ring_deg), float(head_mm)
+        if not (math.isfinite(r1) and math.isfinite(h1)):
+            raise ValueError(f"world.move({ring_deg!r}, {head_mm!r}): expected finite numbers")
+        self.moves += 1
+        self.ring_travel_deg += abs(r1 - r0)
+        s0, s1 = self._side_of(h0), self._side_of(h1)
+        new = []
+        changed = False
+        if s0 == 0 and s1 == 0:
+            # the eyelet slides along the pin circle: the ring may only turn inside one gap window
+            if not self._same_gap_window(self.pin_units(r0), self.pin_units(r1)):
+                changed |= self._collide(r1, h1, "head on the pin circle while the ring turned "
+                                         f"from {r0:.4f} to {r1:.4f} deg, past a pin")
+        elif s0 != 0 and s0 != s1:
+            # arrives at (s1 == 0) or crosses the circle inside this segment
+            t = (self._circle - h0) / (h1 - h0)
+            rc = r0 + t * (r1 - r0)
+            changed |= self._check_contact(rc)
+            if s1 != 0:
+                new = self._leave_circle(s1, rc)
+        elif s0 == 0 and s1 != 0:
+            # leaves the circle at the start of this segment (the contact was checked on arrival)
+            new = self._leave_circle(s1, r0)
+        self.ring_deg, self.head_mm = r1, h1
+        if (new or changed) and self.record_path is not None:
+            self._save()
+        return new
+
+    def _leave_circle(self, side, ring_at):
+        """The eyelet is now strictly on ``side``, having left the circle at ``ring_at``."""
+        if side == self._side:
+            return []             # touched the circle and went back: nothing wrapped
+        self._side = side
+        p = self.pin_units(ring_at)
+        if side > 0:
+            self._p_out = p
+            return []
+        p_out, self._p_out = self._p_out, None
+        if p_out is None:
+            return []
+        if p > p_out:
+            ks = range(math.floor(p_out + _EPS) + 1, math.ceil(p - _EPS))
+            direction = 1
+        else:
+            ks = range(math.ceil(p_out - _EPS) - 1, math.floor(p + _EPS), -1)
+            direction = -1
+        new = [Wrap(pin=k % self._pins, direction=direction) for k in ks]
+        self.wraps.extend(new)
+        return new
+
+    def _gap_offset(self, p):
+        """(nearest gap index g, distance in pin units from the gap centre g + 0.5)."""
+        g = math.floor(p)
+        return g, abs(p - (g + 0.5))
+
+    def _same_gap_window(self, pa, pb):
+        ga, da = self._gap_offset(pa)
+        gb, db = self._gap_offset(pb)
+        return ga == gb and da <= self._tol + _EPS and db <= self._tol + _EPS
+
+    def _check_contact(self, ring_at):
+        g, off = self._gap_offset(self.pin_units(ring_at))
+        if off <= self._tol + _EPS:
+            return False
+        nearest_pin = round(self.pin_units(ring_at)) % self._pins
+        return self._collide(ring_at, self._circle,
+                             f"head crossed the pin circle {off * self._pitch:.4f} deg from the centre "
+                             f"of gap {g % self._pins}|{(g + 1) % self._pins} (tolerance "
+                             f"{self._tol * self._pitch:.4f} deg), at pin {nearest_pin}")
+
+    def _collide(self, ring_at, head_at, reason):
+        self.collisions.append({"ring_deg": ring_at, "head_mm": head_at, "reason": reason,
+                                "move": self.moves})
+        return True
+
+    def _save(self):
+        _write_atomic(self.record_path, json.dumps(self.record(), indent=1) + "\n")
