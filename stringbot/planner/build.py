@@ -1,0 +1,169 @@
+"""Picture -> Plan: checks the knobs, runs the chosen method, records everything.
+
+Methods
+-------
+``fitness`` (default)
+    The paper's method: chord space, regularised least-squares fitness,
+    connected sampling with error diffusion (or, ``disconnected=True``, the
+    priority-queue chord set).
+``greedy``
+    The ThreadTone baseline (see :mod:`stringbot.planner.greedy`).
+"""
+
+import logging
+import math
+import time
+
+import numpy as np
+
+from ..errors import BadInput
+from .chords import chord_pixels, chord_space
+from .image import read_mask, read_picture
+from .plan_file import Plan
+
+log = logging.getLogger(__name__)
+
+__all__ = ["plan_picture", "auto_lines", "check_knobs", "DEFAULTS", "MAX_PINS"]
+
+#: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").
+DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
+            "iterations": 40, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3}
+MAX_PINS = 2000
+MIN_SIZE, MAX_SIZE = 32, 2001
+MAX_LINES = 100_000
+METHODS = ("fitness", "greedy")
+
+
+def auto_lines(gray, mask):
+    """``k = 500 + 10 (255 - mean gray)`` over the pixels of the frame (section 3.3)."""
+    return int(round(500 + 10 * (255.0 - float(np.asarray(gray)[mask].mean()))))
+
+
+def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gamma, T, epsilon, iterations):
+    """Raise BadInput naming the first knob out of range."""
+    if frame not in ("circle", "square"):
+        raise BadInput(f"--frame {frame!r}; expected circle or square")
+    if method not in METHODS:
+        raise BadInput(f"--method {method!r}; expected one of {', '.join(METHODS)}")
+    if not MIN_SIZE <= size <= MAX_SIZE:
+        raise BadInput(f"--size {size}; expected {MIN_SIZE}..{MAX_SIZE} pixels")
+    top = min(MAX_PINS, 2 * size)
+    if not 3 <= pins <= top:
+        raise BadInput(f"--pins {pins}; expected 3..{top} (at --size {size})")
+    if lines != "auto" and not 1 <= lines <= MAX_LINES:
+        raise BadInput(f"--lines {lines}; expected 1..{MAX_LINES} or auto")
+    if not 0 <= start_pin < pins:
+        raise BadInput(f"--start-pin {start_pin}; expected 0..{pins - 1}")
+    for name, value, ok, expected in (
+            ("alpha", alpha, 0 <= alpha <= 1, "0..1"),
+            ("beta", beta, beta >= 0, ">= 0"),
+            ("gamma", gamma, gamma >= 0, ">= 0"),
+            ("T", T, T > 0, "> 0"),
+            ("epsilon", epsilon, 0 <= epsilon <= pins // 2, f"0..{pins // 2}"),
+            ("iterations", iterations, 1 <= iterations <= 10_000, "1..10000")):
+        if not (ok and math.isfinite(value)):
+            raise BadInput(f"--{name} {value}; expected {expected}")
+
+
+def thread_length(pin_xy, chords):
+    """Total chord length in ring diameters (the side for a square frame)."""
+    if not len(chords):
+        return 0.0
+    c = np.asarray(chords)
+    return float(np.linalg.norm(pin_xy[c[:, 0]] - pin_xy[c[:, 1]], axis=1).sum())
+
+
+def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="auto", start_pin=0,
+                 method="fitness", disconnected=False, importance=None, gray="decolor",
+                 alpha=DEFAULTS["alpha"], beta=DEFAULTS["beta"], gamma=DEFAULTS["gamma"], T=DEFAULTS["T"],
+                 epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
+                 picture=None):
+    """Plan a thread painting of a picture.
+
+    Parameters
+    ----------
+    path : str or Path
+        The picture.
+    pins, frame, size, crop, lines, start_pin, method, disconnected, importance, gray,
+    alpha, beta, gamma, T, epsilon, iterations
+        The knobs (see ``stringbot plan --help`` and docs/planner.md).
+    cache : bool
+        Use the on-disk chord-pixel cache.
+    rng : None, int or numpy Generator
+        Randomness of the decolorization (None: a fixed seed).
+    picture : Picture, optional
+        An already read picture (skips reading ``path``).
+
+    Returns
+    -------
+    Plan
+        ``stats`` holds ``lines``, ``thread_diameters``, ``seconds`` and the
+        method's own figures.
+    """
+    t0 = time.perf_counter()
+    check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin, method=method,
+                alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations)
+    if disconnected and method != "fitness":
+        raise BadInput("--disconnected works with --method fitness only")
+    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
+    weights = None
+    if importance is not None:
+        weights = read_mask(importance, size=size, crop=pic.crop,
+                            source_size=(pic.source["width"], pic.source["height"]))
+    from .fitness import frame_mask
+
+    mask = frame_mask(size, frame)
+    k = auto_lines(pic.gray, mask) if lines == "auto" else int(lines)
+    space = chord_space(pins, frame)
+    indptr, indices = chord_pixels(space, size, cache=cache)
+    t_chords = time.perf_counter()
+    stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m),
+             "pixels_per_chord": round(float(len(indices) / max(space.m, 1)), 2)}
+    params = {"pins": pins, "frame": frame, "size": size, "crop": pic.crop, "lines": lines, "lines_target": k,
+              "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
+              "gray": pic.gray_method if pic.gray_method != "gray" else "gray",
+              "gray_requested": gray, "gray_weights": pic.weights,
+              "importance": str(importance) if importance is not None else None}
+    chords = None
+    if method == "greedy":
+        from .greedy import greedy_sequence
+
+        params.update(weight=DEFAULTS["greedy_weight"], width=DEFAULTS["greedy_width"],
+                      min_loop=DEFAULTS["greedy_min_loop"])
+        seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin,
+                              weight=DEFAULTS["greedy_weight"], width=DEFAULTS["greedy_width"],
+                              min_loop=DEFAULTS["greedy_min_loop"])
+    else:
+        from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
+        from .sampling import fitness_table, sample_connected, sample_disconnected
+
+        params.update(alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations)
+        inv = 255.0 - pic.gray
+        gy, gx = gradients(inv)
+        b = (1.0 - alpha) * inv + alpha * np.hypot(gx, gy)
+        w = mask.astype(np.float32) if weights is None else np.where(mask, weights, 0).astype(np.float32)
+        d = edge_consistency(space, size, indptr, indices, gy, gx) if gamma > 0 else np.zeros(space.m)
+        v = chord_weights(space, d, beta=beta, gamma=gamma)
+        f, info = solve_fitness(indptr, indices, b.ravel(), w.ravel(), v, n_pixels=size * size,
+                                iterations=iterations)
+        t_solve = time.perf_counter()
+        stats.update(lsqr_iterations=info["iterations"], lsqr_residual=round(info["residual"], 3),
+                     fitness_min=round(float(f.min()), 4), fitness_max=round(float(f.max()), 4),
+                     solve_seconds=round(t_solve - t_chords, 3))
+        table = fitness_table(space, f, T=T)
+        if disconnected:
+            chords = sample_disconnected(space, table, k, epsilon=epsilon)
+            seq = []
+        else:
+            seq = sample_connected(space, table, k, epsilon=epsilon, start_pin=start_pin)
+    if chords is None:
+        chord_list = list(zip(seq[:-1], seq[1:]))
+    else:
+        chord_list = chords
+    stats.update(lines=len(chord_list), thread_diameters=round(thread_length(space.pin_xy, chord_list), 3),
+                 chords_seconds=round(t_chords - t0, 3), seconds=round(time.perf_counter() - t0, 3))
+    if len(chord_list) < k:
+        log.warning("%s stopped after %d of %d lines", method, len(chord_list), k)
+    return Plan(pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
+                method=method, parameters=params, source=pic.source, stats=stats,
+                connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])])

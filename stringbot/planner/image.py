@@ -1,0 +1,334 @@
+"""Reading pictures: any PIL mode, bomb-safe downscaling, crop, decolorization.
+
+The planner only ever sees a ``size x size`` float array of gray levels in
+[0, 255] (0 black).  A picture is read like this:
+
+1. PIL opens it lazily; zero-byte, foreign or truncated files are
+   :class:`~stringbot.errors.BadInput`.  Pictures of up to
+   :data:`MAX_PIXELS` pixels are accepted (PIL's decompression-bomb limit is
+   raised for the open only); a JPEG is decoded at a reduced scale
+   (``Image.draft``).
+2. The crop square is cut out in horizontal strips; each strip is brought to
+   8-bit ``L`` or ``RGB`` (16-bit scaled, CMYK converted, palette expanded,
+   transparent pixels composited on white, an animation's first frame) and
+   reduced by an integer factor, so no full-size copy beyond PIL's own
+   decoded image (and no full-size float array) is ever made.
+3. The reduced crop is resampled to ``size x size`` (Lanczos).
+4. Colour becomes gray by the real-time contrast-preserving decolorization
+   of Lu, Xu and Jia (2012), or by plain luminance.
+"""
+
+import hashlib
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BadInput
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "parse_crop", "MAX_PIXELS"]
+
+MAX_PIXELS = 1_000_000_000      # refuse larger pictures outright
+MAX_DECODED_BYTES = 1_200_000_000  # PIL's decoded image must fit in this
+MIN_SIDE = 8
+_STRIP_ROWS = 512
+
+
+class Picture:
+    """A cropped, gray, working-size picture.
+
+    Attributes
+    ----------
+    gray : ndarray of float32, shape (size, size)
+        Gray levels in [0, 255], 0 black.
+    crop : dict
+        ``{"cx", "cy", "r"}`` in source pixels.
+    source : dict
+        ``{"path", "sha256", "width", "height"}``.
+    gray_method : str
+        ``"decolor"`` (with ``weights``), ``"luminance"`` or ``"gray"`` (already gray).
+    weights : tuple of float or None
+        ``(w_r, w_g, w_b)`` chosen by the decolorization.
+    """
+
+    def __init__(self, gray, crop, source, gray_method, weights=None):
+        self.gray = gray
+        self.crop = crop
+        self.source = source
+        self.gray_method = gray_method
+        self.weights = weights
+
+
+def sha256_file(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def default_crop(width, height):
+    """The largest centred circle (or square): ``{"cx", "cy", "r"}`` in source pixels."""
+    return {"cx": width / 2.0, "cy": height / 2.0, "r": min(width, height) / 2.0}
+
+
+def parse_crop(text):
+    """Parse ``"CX,CY,R"`` into a crop dict; BadInput when malformed."""
+    parts = str(text).split(",")
+    try:
+        cx, cy, r = (float(p) for p in parts)
+    except ValueError:
+        raise BadInput(f"--crop {text!r} is not CX,CY,R; expected three numbers, e.g. 256,256,200") from None
+    if not all(np.isfinite([cx, cy, r])) or r <= 0:
+        raise BadInput(f"--crop {text!r}: expected finite numbers and a radius R > 0")
+    return {"cx": cx, "cy": cy, "r": r}
+
+
+def _open(path, what):
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    if path.is_dir():
+        raise BadInput(f"{what} {str(path)!r} is a folder; expected a picture file")
+    if not path.is_file():
+        raise BadInput(f"{what} {str(path)!r} does not exist")
+    if path.stat().st_size == 0:
+        raise BadInput(f"{what} {str(path)!r} is an empty file (0 bytes); expected a picture (PNG, JPEG, ...)")
+    old = Image.MAX_IMAGE_PIXELS
+    Image.MAX_IMAGE_PIXELS = MAX_PIXELS  # our own limit below; PIL's would refuse big, honest pictures
+    try:
+        im = Image.open(path)
+    except UnidentifiedImageError:
+        raise BadInput(f"{what} {str(path)!r} is not a picture PIL can read; expected PNG, JPEG, ...") from None
+    except Image.DecompressionBombError:
+        raise BadInput(f"{what} {str(path)!r} has more than {MAX_PIXELS:,} pixels; expected a smaller picture") from None
+    except OSError as exc:
+        raise BadInput(f"{what} {str(path)!r} cannot be read ({exc}); expected a picture file") from None
+    finally:
+        Image.MAX_IMAGE_PIXELS = old
+    w, h = im.size
+    if w < MIN_SIDE or h < MIN_SIDE:
+        raise BadInput(f"{what} {str(path)!r} is {w} x {h} pixels; expected at least {MIN_SIDE} x {MIN_SIDE}")
+    if w * h > MAX_PIXELS:
+        raise BadInput(f"{what} {str(path)!r} has {w * h:,} pixels; expected at most {MAX_PIXELS:,}")
+    if getattr(im, "n_frames", 1) > 1:
+        log.warning("%s %s is animated; using its first frame", what, path)
+    return im
+
+
+def _decoded_bytes(im):
+    per = {"1": 1, "L": 1, "P": 1, "I;16": 2, "I;16B": 2, "I;16L": 2, "LA": 4, "PA": 4}.get(im.mode, 4)
+    return im.size[0] * im.size[1] * per
+
+
+def _to_8bit(im):
+    """Bring a (small) PIL image to 8-bit ``L`` or ``RGB``; alpha is composited on white."""
+    from PIL import Image
+
+    mode = im.mode
+    if mode in ("I;16", "I;16B", "I;16L", "I;16N", "I", "F"):
+        a = np.asarray(im, dtype=np.float64)
+        top = 65535.0 if (mode.startswith("I;16") or a.max(initial=0) > 255) else 255.0
+        if mode == "F" and a.max(initial=0) <= 1.0:
+            top = 1.0
+        return Image.fromarray(np.clip(a * (255.0 / top), 0, 255).round().astype(np.uint8), "L")
+    if mode == "P":
+        im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+    elif mode in ("1", "L", "RGB"):
+        return im.convert("L") if mode == "1" else im
+    elif mode in ("LA", "La", "PA", "RGBA", "RGBa") or "transparency" in im.info:
+        im = im.convert("RGBA")
+    else:  # CMYK, YCbCr, LAB, HSV, ...
+        im = im.convert("RGB")
+    if im.mode == "RGBA":
+        white = Image.new("RGBA", im.size, (255, 255, 255, 255))
+        im = Image.alpha_composite(white, im).convert("RGB")
+    return im
+
+
+def _cut(im, box, size):
+    """Cut ``box`` (may reach outside: white) from ``im`` and resample to ``size x size``.
+
+    Works in strips reduced by an integer factor, so the full-resolution copy
+    of the crop is never made.  Returns an 8-bit ``L`` or ``RGB`` PIL image.
+    """
+    from PIL import Image
+
+    x0, y0, x1, y1 = box
+    side = x1 - x0
+    factor = max(1, int(side // (2 * size)))  # keep >= 2x oversampling for the final Lanczos
+    ix0, iy0 = int(np.floor(x0)), int(np.floor(y0))
+    ix1, iy1 = int(np.ceil(x1)), int(np.ceil(y1))
+    out_w = -(-(ix1 - ix0) // factor)
+    out_h = -(-(iy1 - iy0) // factor)
+    canvas = None
+    rows = _STRIP_ROWS * factor
+    for sy in range(iy0, iy1, rows):
+        ey = min(sy + rows, iy1)
+        strip = _to_8bit(im.crop((ix0, sy, ix1, ey)))
+        if canvas is None:
+            fill = 255 if strip.mode == "L" else (255, 255, 255)
+            canvas = Image.new(strip.mode, (out_w, out_h), fill)
+        if strip.mode != canvas.mode:
+            strip = strip.convert(canvas.mode)
+        # pixels outside the picture are white, not black
+        _whiten_outside(strip, (ix0, sy), im.size)
+        if factor > 1:
+            strip = strip.reduce(factor)
+        canvas.paste(strip, (0, (sy - iy0) // factor))
+    fb = ((x0 - ix0) / factor, (y0 - iy0) / factor, (x1 - ix0) / factor, (y1 - iy0) / factor)
+    return canvas.resize((size, size), Image.Resampling.LANCZOS, box=fb)
+
+
+def _whiten_outside(strip, origin, full):
+    from PIL import Image
+
+    ox, oy = origin
+    w, h = strip.size
+    inside = (max(0, -ox), max(0, -oy), min(w, full[0] - ox), min(h, full[1] - oy))
+    if inside == (0, 0, w, h):
+        return
+    fill = 255 if strip.mode == "L" else (255, 255, 255)
+    white = Image.new(strip.mode, (w, h), fill)
+    if inside[2] > inside[0] and inside[3] > inside[1]:
+        white.paste(strip.crop(inside), inside[:2])
+    strip.paste(white, (0, 0))
+
+
+def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", rng=None):
+    """Read, crop and gray a picture.
+
+    Parameters
+    ----------
+    path : str or Path
+    size : int
+        Side of the working image in pixels.
+    crop : dict or None
+        ``{"cx", "cy", "r"}`` in source pixels; None: the largest centred circle.
+        The crop square must overlap the picture; what lies outside is white.
+    gray : {"decolor", "luminance"}
+    what : str
+        Name used in error messages.
+    rng : None, int or numpy Generator
+        For the random pairs of the decolorization; None: a fixed seed, so
+        that the same picture always gives the same plan.
+
+    Returns
+    -------
+    Picture
+    """
+    im = _open(path, what)
+    w, h = im.size
+    crop = dict(crop) if crop else default_crop(w, h)
+    cx, cy, r = crop["cx"], crop["cy"], crop["r"]
+    box = (cx - r, cy - r, cx + r, cy + r)
+    if box[2] <= 0 or box[3] <= 0 or box[0] >= w or box[1] >= h:
+        raise BadInput(f"crop {cx:g},{cy:g},{r:g} lies outside the {w} x {h} {what}; "
+                       "expected a circle centred on the picture")
+    if 2 * r < MIN_SIDE:
+        raise BadInput(f"crop radius {r:g} is too small; expected at least {MIN_SIDE / 2:g} pixels")
+    try:
+        if im.format == "JPEG" and im.mode in ("L", "RGB", "CMYK", "YCbCr"):
+            scale = max(1, int(2 * r // (2 * size)))
+            if scale > 1:
+                im.draft(im.mode, (max(1, w // scale), max(1, h // scale)))
+                k = w / im.size[0]
+                box = tuple(v / k for v in box)
+        if _decoded_bytes(im) > MAX_DECODED_BYTES:
+            raise BadInput(f"{what} {str(path)!r} ({w} x {h}, mode {im.mode}) needs more than "
+                           f"{MAX_DECODED_BYTES / 1e9:.1f} GB to decode; expected a smaller picture")
+        im.seek(0) if getattr(im, "n_frames", 1) > 1 else None
+        small = _cut(im, box, size)
+    except BadInput:
+        raise
+    except (OSError, SyntaxError, ValueError, EOFError) as exc:
+        raise BadInput(f"{what} {str(path)!r} is damaged or truncated ({exc}); expected a complete picture") from None
+    except MemoryError:
+        raise BadInput(f"{what} {str(path)!r} is too large to read in memory; expected a smaller picture") from None
+    source = {"path": str(path), "sha256": sha256_file(path), "width": int(w), "height": int(h)}
+    if small.mode == "L":
+        return Picture(np.asarray(small, dtype=np.float32), crop, source, "gray")
+    rgb = np.asarray(small, dtype=np.float32) / 255.0
+    if np.ptp(rgb, axis=2).max() < 1.0 / 255:
+        return Picture(rgb[..., 0] * 255.0, crop, source, "gray")
+    if gray == "luminance":
+        wts = (0.299, 0.587, 0.114)
+    elif gray == "decolor":
+        wts = decolorize(rgb, rng=rng)
+    else:
+        raise ValueError(f"gray {gray!r}; expected 'decolor' or 'luminance'")
+    g = (rgb @ np.asarray(wts, dtype=np.float32)) * 255.0
+    return Picture(np.clip(g, 0, 255).astype(np.float32), crop, source, gray, tuple(float(v) for v in wts))
+
+
+def decolorize(rgb, *, sigma=0.05, rng=None):
+    """Real-time contrast-preserving decolorization (Lu, Xu and Jia 2012).
+
+    Of the 66 weights ``(w_r, w_g, w_b)`` on the 0.1 grid that sum to 1, pick
+    the one whose gray differences best preserve the colour contrasts of a
+    ~64 x 64 nearest-neighbour copy: global pairs (a random permutation) and
+    local pairs (neighbours in a half-size copy), contrast
+    ``delta = |rgb_x - rgb_y| / sqrt(2)`` (pairs with delta < 0.05 ignored),
+    score ``mean log(exp(-(l + delta)^2 / sigma^2) + exp(-(l - delta)^2 / sigma^2))``
+    with ``l`` the gray difference; the best score wins.
+
+    Parameters
+    ----------
+    rgb : ndarray of float, shape (h, w, 3)
+        Colour in [0, 1].
+    sigma : float
+    rng : None, int or numpy Generator
+        None: a fixed seed.
+
+    Returns
+    -------
+    tuple of float
+        ``(w_r, w_g, w_b)``.
+    """
+    rng = np.random.default_rng(0 if rng is None else rng)
+    h, w = rgb.shape[:2]
+    scale = 64.0 / np.sqrt(h * w)
+    ys = np.minimum((np.arange(max(1, round(h * scale))) / scale).astype(int), h - 1)
+    xs = np.minimum((np.arange(max(1, round(w * scale))) / scale).astype(int), w - 1)
+    small = rgb[np.ix_(ys, xs)].astype(np.float64)
+    flat = small.reshape(-1, 3)
+    pg = flat - flat[rng.permutation(len(flat))]
+    half = small[::2, ::2]
+    px = (half[:, :-1] - half[:, 1:]).reshape(-1, 3)
+    py = (half[:-1, :] - half[1:, :]).reshape(-1, 3)
+    p = np.concatenate([pg, px, py])
+    det = np.sqrt((p ** 2).sum(axis=1)) / 1.41
+    keep = det >= 0.05
+    p, det = p[keep], det[keep]
+    grid = [(r / 10, g / 10, (10 - r - g) / 10) for r in range(11) for g in range(11 - r)]
+    wts = np.asarray(grid).T  # (3, 66)
+    if len(p) == 0:
+        return (0.299, 0.587, 0.114)
+    l = p @ wts
+    d = det[:, None]
+    u = np.logaddexp(-((l + d) ** 2) / sigma ** 2, -((l - d) ** 2) / sigma ** 2)
+    best = int(np.argmax(u.mean(axis=0)))
+    return tuple(round(float(v), 1) for v in wts[:, best])
+
+
+def read_mask(path, *, size, crop, source_size):
+    """Importance weights from a mask picture of the source's size.
+
+    White is important (weight 2.0), black is not (1.0), gray scales between.
+
+    Returns
+    -------
+    ndarray of float32, shape (size, size)
+    """
+    im = _open(path, "mask")
+    if im.size != tuple(source_size):
+        raise BadInput(f"mask {str(path)!r} is {im.size[0]} x {im.size[1]}; expected the picture's size "
+                       f"{source_size[0]} x {source_size[1]}")
+    cx, cy, r = crop["cx"], crop["cy"], crop["r"]
+    try:
+        small = _cut(im, (cx - r, cy - r, cx + r, cy + r), size).convert("L")
+    except (OSError, SyntaxError, ValueError, EOFError) as exc:
+        raise BadInput(f"mask {str(path)!r} is damaged or truncated ({exc}); expected a complete picture") from None
+    return 1.0 + np.asarray(small, dtype=np.float32) / 255.0
