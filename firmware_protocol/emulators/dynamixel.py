@@ -1,0 +1,515 @@
+"""A bus of two Dynamixel X-series servos speaking Protocol 2.0: the ring's and the head's.
+
+Bytes in, bytes out, a virtual clock; no I/O.  Each servo keeps the
+control-table subset of :mod:`firmware_protocol.dynamixel` with its access
+rules (EEPROM items only with torque off, ranges, Data Range / Access /
+Data Limit errors), moves under its trapezoidal profile (Profile Velocity and
+Profile Acceleration) in virtual time, and behaves like the real one where the
+winding depends on it:
+
+- Present Position is re-based to within one turn (0..ticks_per_turn-1, plus
+  Homing Offset) at power-up, after REBOOT, on CLEAR (multi-turn) and when the
+  Operating Mode changes; in Extended Position mode it is multi-turn otherwise.
+- A power loss stops the motion where it is; the servos answer nothing until
+  the power is back, then come up with torque off and RAM items at defaults.
+- Status packets answer at once; motion takes virtual time.  In fast mode
+  (``realtime=False``) a read of Moving or Present Position while a servo moves
+  first runs the clock to the next event (the end of a motion, a fault), so a
+  polling host sees each motion finish quickly and in order.
+
+The physical shaft positions drive the world (``world.move(ring_deg, head_mm)``):
+ring degrees = shaft ticks / ticks_per_turn * 360 / gear_ratio; the head maps
+linearly from head_in_ticks..head_out_ticks to head.in_mm..head.out_mm.
+
+Faults (``faults="power_loss@move=40, corrupt@packet=12"``, comma-separated;
+``move=N`` is the N-th Goal Position write that starts a motion, counted from
+1 over both servos; the fault strikes halfway through that motion):
+
+- ``power_loss@move=N[:off=S]``: servo power is cut for S virtual seconds (default 0.5).
+- ``silent@move=N[:id=I]``: servo I (default: the ring's) never answers again.
+- ``hardware_error@move=N[:id=I][:bits=B]``: Hardware Error Status B (default 0x20,
+  Overload), torque off, the Alert bit in every status packet until REBOOT.
+- ``corrupt@packet=N``: the N-th status packet sent has a flipped byte (bad CRC).
+"""
+
+import enum
+import logging
+import math
+from dataclasses import dataclass
+
+from firmware_protocol import dynamixel as dx
+from firmware_protocol.emulators.base import Emulator
+
+__all__ = ["DynamixelEmulator", "XServo", "Fault", "parse_faults", "Power"]
+
+log = logging.getLogger(__name__)
+
+RPM_PER_UNIT = 0.229            # Profile Velocity / Velocity Limit unit
+REV_PER_MIN2_PER_UNIT = 214.577  # Profile Acceleration unit
+POLLED = range(122, 136)         # Moving, Moving Status, Present PWM/Current/Velocity/Position
+VELOCITY_LIMIT_DEFAULT = 128     # XM430-W350 factory Velocity Limit (44)
+#: Fast mode: the most virtual time one poll lets pass, so that no servo turns more than a
+#: fraction of a turn between two polls (as with a real host polling at any sensible rate).
+POLL_QUANTUM_S = 0.25
+FIRMWARE_VERSION = 46
+
+
+class Power(enum.Enum):
+    ON = "on"
+    OFF = "off"
+
+
+class FaultKind(enum.Enum):
+    POWER_LOSS = "power_loss"
+    SILENT = "silent"
+    HARDWARE_ERROR = "hardware_error"
+    CORRUPT = "corrupt"
+
+
+@dataclass
+class Fault:
+    kind: FaultKind
+    at: int                      # move number (or packet number for CORRUPT)
+    servo_id: int | None = None
+    bits: int = 0x20
+    off_s: float = 0.5
+
+
+def parse_faults(spec):
+    """``"power_loss@move=3:off=1, corrupt@packet=7"`` (or a list of such items) -> [Fault]."""
+    if not spec:
+        return []
+    items = spec.replace(";", ",").split(",") if isinstance(spec, str) else list(spec)
+    faults = []
+    for item in (i.strip() for i in items):
+        if not item:
+            continue
+        try:
+            kind_text, _, rest = item.partition("@")
+            kind = FaultKind(kind_text.strip())
+            opts = dict(part.split("=", 1) for part in rest.split(":"))
+            where = "packet" if kind is FaultKind.CORRUPT else "move"
+            fault = Fault(kind, int(opts.pop(where)))
+            if "id" in opts:
+                fault.servo_id = int(opts.pop("id"))
+            if "bits" in opts:
+                fault.bits = int(opts.pop("bits"), 0)
+            if "off" in opts:
+                fault.off_s = float(opts.pop("off"))
+            if opts or fault.at < 1:
+                raise ValueError
+        except (ValueError, KeyError):
+            raise ValueError(
+                f"bad Dynamixel fault {item!r}; expected power_loss@move=N[:off=S], "
+                "silent@move=N[:id=I], hardware_error@move=N[:id=I][:bits=B] or corrupt@packet=N") from None
+        faults.append(fault)
+    return faults
+
+
+class Profile:
+    """A trapezoidal (or triangular) move of the shaft, in ticks and seconds."""
+
+    def __init__(self, start, goal, t0, vmax, amax):
+        self.start, self.goal, self.t0 = float(start), float(goal), t0
+        dist = abs(self.goal - self.start)
+        self.sign = 1.0 if self.goal >= self.start else -1.0
+        if math.isinf(amax):
+            self.ta, self.v = 0.0, vmax
+            self.duration = dist / vmax if dist else 0.0
+            self.a = math.inf
+            return
+        self.a = amax
+        ta = vmax / amax
+        if amax * ta * ta >= dist:           # triangular: never reaches vmax
+            ta = math.sqrt(dist / amax)
+            vmax = amax * ta
+        self.ta, self.v = ta, vmax
+        self.duration = 2 * ta + (dist - amax * ta * ta) / vmax if dist else 0.0
+
+    @property
+    def end(self):
+        return self.t0 + self.duration
+
+    def at(self, now):
+        """(position, velocity) at virtual time ``now``."""
+        t = min(max(now - self.t0, 0.0), self.duration)
+        if t >= self.duration:
+            return self.goal, 0.0
+        if self.ta == 0.0:
+            return self.start + self.sign * self.v * t, self.sign * self.v
+        cruise = self.duration - 2 * self.ta
+        if t < self.ta:
+            d, v = 0.5 * self.a * t * t, self.a * t
+        elif t < self.ta + cruise:
+            d, v = 0.5 * self.a * self.ta ** 2 + self.v * (t - self.ta), self.v
+        else:
+            r = self.duration - t
+            d = abs(self.goal - self.start) - 0.5 * self.a * r * r
+            v = self.a * r
+        return self.start + self.sign * d, self.sign * v
+
+
+class XServo:
+    """One X-series servo: control table, shaft, profile motion, power."""
+
+    RAM_DEFAULTS = {"Torque Enable": 0, "LED": 0, "Status Return Level": 2,
+                    "Profile Acceleration": 0, "Profile Velocity": 0}
+
+    def __init__(self, servo_id, *, model, ticks_per_turn, shaft=0, mode=dx.OperatingMode.POSITION):
+        self.ticks_per_turn = ticks_per_turn
+        self.table = bytearray(dx.TABLE_SIZE)
+        self.shaft = float(shaft)      # physical position, ticks; moves only by motion
+        self.base = 0                  # reported = shaft - base + homing offset
+        self.motion = None
+        self.power = Power.ON
+        self.answering = True
+        for name, value in {"Model Number": model, "Firmware Version": FIRMWARE_VERSION,
+                            "ID": servo_id, "Baud Rate": 1, "Return Delay Time": 250,
+                            "Operating Mode": mode, "Protocol Type": 2, "Moving Threshold": 10,
+                            "Temperature Limit": 80, "Velocity Limit": VELOCITY_LIMIT_DEFAULT,
+                            "Max Position Limit": ticks_per_turn - 1, "Shutdown": 0x34,
+                            "Present Input Voltage": 120, "Present Temperature": 30}.items():
+            self.set(name, value)
+        self.power_up(0.0)
+
+    # -- control table ----------------------------------------------------------------------
+    def get(self, name):
+        f = dx.CONTROL_TABLE[name]
+        return dx.from_bytes(self.table[f.address:f.address + f.size], f.signed)
+
+    def set(self, name, value):
+        f = dx.CONTROL_TABLE[name]
+        self.table[f.address:f.address + f.size] = dx.to_bytes(value, f.size, f.signed)
+
+    @property
+    def id(self):
+        return self.get("ID")
+
+    @property
+    def present(self):
+        return round(self.shaft) - self.base + self.get("Homing Offset")
+
+    def _rebase(self):
+        """Present Position := the shaft's angle within one turn (+ Homing Offset)."""
+        self.base = round(self.shaft) - round(self.shaft) % self.ticks_per_turn
+        self.set("Goal Position", self.present)
+
+    # -- time ---------------------------------------------------------------------------------
+    def update(self, now):
+        if self.motion is None:
+            return
+        self.shaft, _ = self.motion.at(now)
+        if now >= self.motion.end:
+            self.motion = None
+
+    def stop(self, now):
+        self.update(now)
+        self.motion = None
+
+    def _limits(self):
+        vel = self.get("Profile Velocity") or self.get("Velocity Limit") or 1023
+        vmax = vel * RPM_PER_UNIT / 60.0 * self.ticks_per_turn
+        acc = self.get("Profile Acceleration")
+        amax = acc * REV_PER_MIN2_PER_UNIT / 3600.0 * self.ticks_per_turn if acc else math.inf
+        return vmax, amax
+
+    # -- power ----------------------------------------------------------------------------------
+    def power_down(self, now):
+        self.stop(now)
+        self.power = Power.OFF
+
+    def power_up(self, now):
+        """Power-on or reboot: RAM items at defaults, torque off, position within one turn."""
+        self.stop(now)
+        self.power = Power.ON
+        for name, value in self.RAM_DEFAULTS.items():
+            self.set(name, value)
+        self.set("Hardware Error Status", 0)
+        self._rebase()
+
+    def hardware_error(self, now, bits):
+        self.stop(now)
+        self.set("Hardware Error Status", bits)
+        self.set("Torque Enable", 0)
+
+    @property
+    def error_bits(self):
+        return dx.ERRBIT_ALERT if self.get("Hardware Error Status") else 0
+
+    # -- instructions ---------------------------------------------------------------------------
+    def read(self, address, length, now):
+        """-> (error number, data)"""
+        if address + length > len(self.table) or length < 1:
+            return 0x07, b""
+        self.update(now)
+        self.set("Present Position", self.present)
+        velocity = self.motion.at(now)[1] if self.motion else 0.0
+        self.set("Present Velocity", round(velocity * 60.0 / self.ticks_per_turn / RPM_PER_UNIT))
+        self.set("Moving", 1 if self.motion else 0)
+        self.set("Moving Status", 0x02 if self.motion else 0x01)
+        self.set("Realtime Tick", int(now * 1000) % 32768)
+        return 0, bytes(self.table[address:address + length])
+
+    def write(self, address, data, now):
+        """-> error number (0 = done).  All items are checked before any is written."""
+        changes, i = [], 0
+        while i < len(data):
+            f = dx.FIELD_AT.get(address + i)
+            if f is None or not f.writable:
+                return 0x07
+            if i + f.size > len(data):
+                return 0x05
+            value = dx.from_bytes(data[i:i + f.size], f.signed)
+            if f.eeprom and self.get("Torque Enable"):
+                return 0x07
+            lo, hi = f.lo, f.hi
+            if f.name == "Goal Position" and self._mode_after(changes) == dx.OperatingMode.POSITION:
+                lo, hi = self.get("Min Position Limit"), self.get("Max Position Limit")
+            if not lo <= value <= hi:
+                return 0x04
+            if f.name == "Operating Mode" and value not in (0, 1, 3, 4, 5, 16):
+                return 0x04
+            if f.name == "Profile Velocity" and value > self.get("Velocity Limit"):
+                return 0x06
+            if f.name == "Torque Enable" and value and self.get("Hardware Error Status"):
+                return 0x01
+            changes.append((f, value))
+            i += f.size
+        for f, value in changes:
+            self._apply(f, value, now)
+        return 0
+
+    def _mode_after(self, changes):
+        modes = [v for f, v in changes if f.name == "Operating Mode"]
+        return modes[-1] if modes else self.get("Operating Mode")
+
+    def _apply(self, f, value, now):
+        old = self.get(f.name)
+        self.set(f.name, value)
+        if f.name == "Operating Mode" and value != old:
+            self._rebase()
+        elif f.name == "Torque Enable":
+            if value and not old:
+                if self.get("Operating Mode") == dx.OperatingMode.POSITION:
+                    self._rebase()
+                self.set("Goal Position", self.present)
+            elif not value:
+                self.stop(now)
+        elif f.name == "Homing Offset":
+            self.set("Goal Position", self.present)
+        elif f.name == "Goal Position" and self.get("Torque Enable"):
+            self.stop(now)
+            target = value - self.get("Homing Offset") + self.base
+            vmax, amax = self._limits()
+            if target != round(self.shaft):
+                self.motion = Profile(self.shaft, target, now, vmax, amax)
+
+    def clear_multi_turn(self, now):
+        if self.motion is not None or self.get("Torque Enable"):
+            return 0x01
+        self._rebase()
+        return 0
+
+
+class DynamixelEmulator(Emulator):
+    """Two X-series servos on one Protocol 2.0 bus (ids and geometry from the machine file)."""
+
+    def __init__(self, machine, *, world=None, faults=None, realtime=False):
+        super().__init__()
+        self.machine = machine
+        self.world = world
+        self.realtime = realtime
+        self.faults = parse_faults(faults)
+        c = lambda key: machine[f"controller.{key}"]
+        self.tpt, self.gear = c("ticks_per_turn"), c("gear_ratio")
+        self.ring_id, self.head_id = c("ring_id"), c("head_id")
+        self.head_in, self.head_out = c("head_in_ticks"), c("head_out_ticks")
+        model = c("model_number") or 1020
+        ring0 = getattr(world, "ring_deg", 0.0) if world is not None else 0.0
+        head0 = getattr(world, "head_mm", machine["head.in_mm"]) if world is not None else machine["head.in_mm"]
+        self.ring = XServo(self.ring_id, model=model, ticks_per_turn=self.tpt,
+                           shaft=round(ring0 / 360.0 * self.gear * self.tpt))
+        self.head = XServo(self.head_id, model=model, ticks_per_turn=self.tpt,
+                           shaft=round(self._head_ticks(head0)))
+        self.servos = {self.ring_id: self.ring, self.head_id: self.head}
+        self._reader = dx.PacketReader()
+        self._out = bytearray()
+        self._moves = 0            # Goal Position writes that started a motion
+        self._packets = 0          # status packets sent
+        self._events = []          # (time, action, fault) pending fault actions
+        self._last_world = self._physical()
+        self.log = []              # (now, text) notable events, for tests and debugging
+
+    # -- geometry -------------------------------------------------------------------------------
+    def _head_ticks(self, mm):
+        m = self.machine
+        return self.head_in + (mm - m["head.in_mm"]) * (self.head_out - self.head_in) / (
+            m["head.out_mm"] - m["head.in_mm"])
+
+    def _physical(self):
+        m = self.machine
+        ring_deg = self.ring.shaft / self.tpt * 360.0 / self.gear
+        head_mm = m["head.in_mm"] + (self.head.shaft - self.head_in) * (m["head.out_mm"] - m["head.in_mm"]) / (
+            self.head_out - self.head_in)
+        return ring_deg, head_mm
+
+    def _sync_world(self):
+        for servo in self.servos.values():
+            servo.update(self.now)
+        pos = self._physical()
+        if pos != self._last_world:
+            self._last_world = pos
+            if self.world is not None:
+                self.world.move(*pos)
+
+    # -- Emulator interface ------------------------------------------------------------------------
+    def receive(self, data):
+        for packet in self._reader.feed(bytes(data)):
+            self._handle(packet)
+
+    def transmit(self):
+        out, self._out = bytes(self._out), bytearray()
+        return out
+
+    @property
+    def busy(self):
+        return bool(self._out) or bool(self._events) or any(s.motion for s in self.servos.values())
+
+    def next_event_in(self):
+        times = [t for t, *_ in self._events] + [s.motion.end for s in self.servos.values() if s.motion]
+        return max(0.0, min(times) - self.now) if times else None
+
+    def advance(self, dt=None):
+        start = self.now
+        if dt is None:
+            step = self.next_event_in()
+            if step is None:
+                return 0.0
+            target = self.now + step
+        else:
+            target = self.now + max(0.0, dt)
+        while True:
+            due = [e for e in self._events if e[0] <= target]
+            if not due:
+                break
+            event = min(due, key=lambda e: e[0])
+            self._events.remove(event)
+            self.now = max(self.now, event[0])
+            self._sync_world()
+            self._fire(event[1], event[2])
+        self.now = target
+        self._sync_world()
+        return self.now - start
+
+    def close(self):
+        close = getattr(self.world, "close", None)
+        if close is not None:
+            close()
+
+    # -- faults -------------------------------------------------------------------------------------
+    def _fire(self, action, fault):
+        self.log.append((self.now, f"{action} {fault.kind.value}"))
+        log.info("dynamixel emulator: %s at t=%.3f", action, self.now)
+        if action == "power_off":
+            for s in self.servos.values():
+                s.power_down(self.now)
+            self._events.append((self.now + fault.off_s, "power_on", fault))
+        elif action == "power_on":
+            for s in self.servos.values():
+                s.power_up(self.now)
+        elif action == "silent":
+            self.servos[fault.servo_id or self.ring_id].answering = False
+        elif action == "hardware_error":
+            self.servos[fault.servo_id or self.ring_id].hardware_error(self.now, fault.bits)
+
+    def _motion_started(self, servo):
+        self._moves += 1
+        for fault in self.faults:
+            if fault.kind is not FaultKind.CORRUPT and fault.at == self._moves:
+                when = self.now + servo.motion.duration / 2 if servo.motion else self.now
+                action = "power_off" if fault.kind is FaultKind.POWER_LOSS else fault.kind.value
+                self._events.append((when, action, fault))
+
+    # -- packets ------------------------------------------------------------------------------------
+    def _send(self, servo, error=0, params=b""):
+        if servo.power is Power.OFF or not servo.answering:
+            return False
+        packet = bytearray(dx.encode_status(servo.id, error | servo.error_bits, params))
+        self._packets += 1
+        if any(f.kind is FaultKind.CORRUPT and f.at == self._packets for f in self.faults):
+            packet[-3] ^= 0x5A
+            self.log.append((self.now, f"corrupt status packet {self._packets}"))
+        self._out += packet
+        return True
+
+    def _poll(self, address, length):
+        """Fast mode: a host polling motion state sees time pass up to the next event."""
+        if self.realtime or address + length <= POLLED.start or address >= POLLED.stop:
+            return
+        if any(s.motion for s in self.servos.values()) or self._events:
+            self.advance(min(self.next_event_in(), POLL_QUANTUM_S))
+
+    def _handle(self, p):
+        if isinstance(p, dx.BadPacket):
+            servo = self.servos.get(p.id)
+            if servo is not None:
+                self._send(servo, 0x03)
+            return
+        targets = list(self.servos.values()) if p.id == dx.BROADCAST_ID else (
+            [self.servos[p.id]] if p.id in self.servos else [])
+        powered = [s for s in targets if s.power is Power.ON]
+        ins, prm = p.instruction, p.params
+        if ins == dx.Instruction.PING:
+            for s in powered:
+                if not self._send(s, 0, dx.to_bytes(s.get("Model Number"), 2) + bytes([FIRMWARE_VERSION])):
+                    break
+        elif ins == dx.Instruction.READ and p.id != dx.BROADCAST_ID:
+            for s in powered:
+                if len(prm) != 4:
+                    self._send(s, 0x05)
+                    continue
+                address, length = dx.from_bytes(prm[:2]), dx.from_bytes(prm[2:])
+                self._poll(address, length)
+                err, data = s.read(address, length, self.now)
+                self._send(s, err, data)
+        elif ins == dx.Instruction.WRITE:
+            for s in powered:
+                self._write(s, dx.from_bytes(prm[:2]), prm[2:], reply=p.id != dx.BROADCAST_ID)
+        elif ins == dx.Instruction.SYNC_READ and p.id == dx.BROADCAST_ID and len(prm) >= 4:
+            address, length = dx.from_bytes(prm[:2]), dx.from_bytes(prm[2:4])
+            self._poll(address, length)
+            for servo_id in prm[4:]:
+                s = self.servos.get(servo_id)
+                if s is None or s.power is Power.OFF:
+                    break
+                err, data = s.read(address, length, self.now)
+                if not self._send(s, err, data):
+                    break
+        elif ins == dx.Instruction.SYNC_WRITE and p.id == dx.BROADCAST_ID and len(prm) >= 4:
+            address, length = dx.from_bytes(prm[:2]), dx.from_bytes(prm[2:4])
+            body = prm[4:]
+            for i in range(0, len(body) - length, length + 1):
+                s = self.servos.get(body[i])
+                if s is not None and s.power is Power.ON:
+                    self._write(s, address, body[i + 1:i + 1 + length], reply=False)
+        elif ins == dx.Instruction.REBOOT:
+            for s in powered:
+                if self._send(s) or p.id == dx.BROADCAST_ID:
+                    s.power_up(self.now)
+                    self.log.append((self.now, f"reboot {s.id}"))
+        elif ins == dx.Instruction.CLEAR:
+            for s in powered:
+                self._send(s, s.clear_multi_turn(self.now) if prm == dx.CLEAR_MULTI_TURN else 0x04)
+        else:
+            for s in powered:
+                if p.id != dx.BROADCAST_ID:
+                    self._send(s, 0x02)
+
+    def _write(self, servo, address, data, *, reply):
+        before = servo.motion
+        self._sync_world()
+        err = servo.write(address, data, self.now)
+        if reply:
+            self._send(servo, err)
+        if servo.motion is not None and servo.motion is not before:
+            self._motion_started(servo)
