@@ -1,3 +1,32 @@
-"""Links: moves -> bytes on a port (pyserial, dynamixel-sdk); the only code that opens ports."""
+"""Links: moves -> bytes on a port (pyserial, dynamixel-sdk); the only code that opens ports.
 
-__all__ = []
+``open_port(url)`` opens a port (one clear line when it cannot); a link takes
+the open port object and speaks one firmware's protocol over it:
+
+- :class:`GrblLink` (GRBL 1.1, grblHAL): character counting against the
+  receive buffer, ``G4 P0`` syncs, ``?`` status, ``!`` feed hold.
+- :class:`MarlinLink`: line numbers, checksums, resends, ``M400`` syncs.
+
+The wind loop (``stringbot.winding``) drives any link through the interface
+documented there; :func:`gcode_link` picks the G-code link for a machine.
+"""
+
+from ..errors import BadInput
+from .base import FirmwareInfo, LinkState, Status, Where, strip_comment
+from .grbl import GrblLink, parse_status
+from .marlin import MarlinLink
+from .ports import open_port, sim_url
+
+__all__ = ["open_port", "sim_url", "gcode_link", "GrblLink", "MarlinLink", "LinkState",
+           "FirmwareInfo", "Status", "Where", "strip_comment", "parse_status"]
+
+
+def gcode_link(port, machine, **options):
+    """The G-code link for ``machine``'s dialect over an open ``port``."""
+    dialect = machine["controller.dialect"]
+    if dialect in ("grbl", "grblhal"):
+        return GrblLink(port, dialect, **options)
+    if dialect == "marlin":
+        return MarlinLink(port, **options)
+    raise BadInput(f"machine {machine.name!r} has controller.dialect {dialect!r}; "
+                   "expected 'grbl', 'grblhal' or 'marlin' for a G-code link")

@@ -1,0 +1,399 @@
+"""The GRBL / grblHAL link: character counting, status reports, feed hold.
+
+Streaming follows GRBL's own interface document: the host keeps the count of
+bytes it has sent that the firmware has not yet answered (``ok`` or
+``error:N``, one per line, in order) and never lets it exceed the firmware's
+receive buffer (128 bytes on GRBL; what ``$I``'s ``[OPT:...,blocks,rx]``
+reports, e.g. 1024 on grblHAL).  Push messages (``<...>`` status, ``[...]``,
+``ALARM:N``, the banner) are not answers and are handled apart.
+
+A step counts as executed only when the answer to the ``G4 P0`` that follows
+its lines arrives: GRBL answers a dwell only once every earlier motion has
+finished.  Lines of the next step(s) may already be in the receive buffer
+(``lookahead``), so the machine never waits for the host between steps.
+"""
+
+import logging
+import re
+import time
+from collections import deque
+
+from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment
+from .codes import grbl_alarm, grbl_error
+
+__all__ = ["GrblLink", "parse_status"]
+
+log = logging.getLogger(__name__)
+
+_BANNER = re.compile(r"^(Grbl|GrblHAL|grblHAL)\s+(\S+)", re.IGNORECASE)
+_OPT = re.compile(r"^\[OPT:([^,\]]*),(\d+),(\d+)")
+_VER = re.compile(r"^\[VER:([^:\]]*)")
+DEFAULT_RX = {"grbl": 128, "grblhal": 1024}
+_RESET = b"\x18"
+
+
+def parse_status(line):
+    """``<Idle|MPos:1.000,2.000,0.000|Bf:15,128|FS:0,0>`` -> :class:`Status` (GRBL 1.1 and 0.9 forms)."""
+    body = line.strip()[1:-1]
+    parts = body.split("|") if "|" in body else body.split(",", 1)
+    state, _, sub = parts[0].partition(":")
+    fields = {}
+    for part in parts[1:]:
+        key, _, value = part.partition(":")
+        fields[key] = value
+    pos = fields.get("MPos") or fields.get("WPos")
+    mpos = None
+    if pos:
+        try:
+            mpos = tuple(float(v) for v in pos.split(","))
+        except ValueError:
+            mpos = None
+    return Status(state=state, sub=sub, mpos=mpos, fields=fields)
+
+
+class GrblLink(LineLink):
+    """A G-code link to GRBL 1.1 or grblHAL.
+
+    Parameters
+    ----------
+    port : an open pyserial port
+    dialect : "grbl" or "grblhal", the machine file's ``controller.dialect``
+    sync_line : the line whose answer means "all motion finished" (``G4 P0``)
+    lookahead : how many steps beyond the last executed one may be sent
+    """
+
+    def __init__(self, port, dialect="grbl", *, sync_line="G4 P0", lookahead=1,
+                 response_timeout=3.0, motion_timeout=600.0, poll_interval=0.5):
+        super().__init__(port, response_timeout=response_timeout)
+        self.dialect = dialect
+        self.sync_line = sync_line
+        self.lookahead = lookahead
+        self.motion_timeout = motion_timeout
+        self.poll_interval = poll_interval
+        self.rx_size = DEFAULT_RX.get(dialect, 128)
+        self.planner_blocks = 0
+        self._inflight = deque()      # (nbytes, Where) for lines sent and not yet answered
+        self._inflight_bytes = 0
+        self.last_status = None
+        self.max_inflight_bytes = 0   # for tests: character counting never exceeds rx_size
+        self.status_log = None        # list -> every status report is appended as (time, Status)
+
+    # ---- identification --------------------------------------------------------------
+    def identify(self):
+        """Find out who answers; refuse anything that is not the machine's dialect.
+
+        Reads the banner if the firmware prints one on connect, then asks ``$I``.
+        """
+        seen = self.drain_input(quiet=0.15, limit=2.5)
+        answer = self._ask("$I", seen)
+        lines = tuple(seen) + tuple(answer)
+        name, version, rx, blocks = "", "", 0, 0
+        for line in lines:
+            m = _BANNER.match(line)
+            if m:
+                name, version = m.group(1), m.group(2)
+            m = _VER.match(line)
+            if m and not version:
+                version = m.group(1)
+            m = _OPT.match(line)
+            if m:
+                blocks, rx = int(m.group(2)), int(m.group(3))
+            if line.upper().startswith("[FIRMWARE:GRBLHAL"):
+                name = "grblHAL"
+        joined = " ".join(lines)
+        if "Marlin" in joined or "FIRMWARE_NAME" in joined or "Unknown command" in joined:
+            raise self.fail(f"the machine runs Marlin, but machine file says {self.dialect!r}; "
+                            "use a machine file for Marlin or check the port")
+        if not name and not any(_VER.match(x) for x in lines):
+            if lines:
+                raise self.fail(f"the device on the port is not GRBL or grblHAL; it answered {lines[0][:60]!r}")
+            raise self.fail("no answer from the machine (expected GRBL's banner or $I); "
+                            "check the port, the baud rate and that the machine is on")
+        found = "grblhal" if name.lower() == "grblhal" or "grblHAL" in joined else "grbl"
+        if found != self.dialect:
+            raise self.fail(f"the machine runs {('grblHAL' if found == 'grblhal' else 'GRBL')} "
+                            f"{version}, but the machine file says dialect {self.dialect!r}")
+        if rx:
+            # GRBL 1.1 reports the usable size; keep one byte of margin for GRBL's ring buffer
+            self.rx_size = rx - 1 if found == "grbl" and rx == 128 else rx
+        if blocks:
+            self.planner_blocks = blocks
+        self.info = FirmwareInfo(dialect=found, name=name or "Grbl", version=version,
+                                 rx_buffer=self.rx_size, lines=lines)
+        self.state = LinkState.IDENTIFIED
+        log.info("firmware: %s %s, receive buffer %d bytes", self.info.name, version, self.rx_size)
+        return self.info
+
+    def _ask(self, text, seen):
+        """Send a query in send-response fashion, re-sending once if the firmware reset meanwhile."""
+        for attempt in range(2):
+            self.write(text.encode("ascii") + b"\n")
+            lines = []
+            deadline = time.monotonic() + self.response_timeout
+            while time.monotonic() < deadline:
+                line = self.readline(deadline - time.monotonic())
+                if line is None:
+                    break
+                if line.startswith("ok") or line.startswith("error"):
+                    lines.append(line)
+                    return lines
+                if _BANNER.match(line) and attempt == 0 and not lines:
+                    seen.append(line)       # the port open reset the board: ask again
+                    break
+                lines.append(line)
+            else:
+                return lines
+            if lines:
+                return lines
+        return []
+
+    # ---- state -----------------------------------------------------------------------
+    def status(self, timeout=None):
+        """Ask ``?`` and return the next status report (answers in between are handled)."""
+        self.write(b"?")
+        deadline = time.monotonic() + (timeout or self.response_timeout)
+        while True:
+            line = self.readline(max(0.0, deadline - time.monotonic()))
+            if line is None:
+                raise self.fail("the machine stopped answering (no status report)")
+            if line.startswith("<"):
+                return self._status(line)
+            self._handle(line)
+
+    def _status(self, line):
+        st = parse_status(line)
+        self.last_status = st
+        if self.status_log is not None:
+            self.status_log.append((time.monotonic(), st, len(self._inflight)))
+        return st
+
+    def command(self, text, timeout=None):
+        """Send one line and wait for its answer (send-response), e.g. ``$H`` or ``$X``."""
+        self._send(text, Where())
+        self._wait_answers(0, timeout or self.response_timeout)
+
+    def prepare(self, *, home=False, preamble=(), home_lines=("$H",)):
+        """Check for alarms, home if asked, set the modal state.
+
+        An alarm on a machine that is not homed here is refused with the alarm's words.
+        """
+        st = self.status()
+        if st.state == "Alarm":
+            if not home:
+                raise self.fail("the machine is in alarm (it asks to be homed or unlocked); "
+                                "check it, then home it or unlock it ($X)")
+        elif st.state not in ("Idle", "Check"):
+            raise self.fail(f"the machine is not idle (state {st.state}); stop or reset it first")
+        if home:
+            for line in home_lines:
+                self.command(line, timeout=self.motion_timeout)
+        for line in preamble:
+            line = strip_comment(line)
+            if line:
+                self.command(line)
+        self.state = LinkState.READY
+
+    # ---- streaming -------------------------------------------------------------------
+    def execute(self, steps, lines_for, on_executed=None):
+        """Stream ``steps``; call ``on_executed(step)`` as each one is confirmed executed.
+
+        ``lines_for(step)`` gives the step's G-code lines; a sync line is appended.
+        Returns when every step is executed.
+        """
+        self.state = LinkState.STREAMING
+        pending = deque()                       # steps sent, not yet confirmed
+        for step in steps:
+            while len(pending) > self.lookahead:
+                self._wait_answers(len(self._inflight) - 1, self.motion_timeout)
+                self._deliver(pending, on_executed)
+            where = Where(step=getattr(step, "index", None), pin=getattr(step, "pin", None))
+            if not pending:
+                self.where = where
+            for text in lines_for(step):
+                text = strip_comment(text)
+                if text:
+                    self._send(text, where)
+            self._send(self.sync_line, Where(where.step, where.pin, True, step))
+            pending.append(step)
+            self._poll()
+            self._deliver(pending, on_executed)
+        while pending:
+            self._wait_answers(len(self._inflight) - 1, self.motion_timeout)
+            self._deliver(pending, on_executed)
+        self.state = LinkState.READY
+
+    def _deliver(self, pending, on_executed):
+        for step in self.take_executed():
+            if pending and pending[0] is step:
+                pending.popleft()
+            if pending:
+                nxt = pending[0]
+                self.where = Where(getattr(nxt, "index", None), getattr(nxt, "pin", None))
+            if on_executed is not None:
+                on_executed(step)
+
+    def finish(self, lines=()):
+        """Send the closing lines and wait until the machine has executed them."""
+        for line in lines:
+            line = strip_comment(line)
+            if line:
+                self._send(line, Where())
+        self._send(self.sync_line, Where())
+        self._wait_answers(0, self.motion_timeout)
+        self.state = LinkState.READY
+
+    def _send(self, text, where):
+        data = text.encode("ascii") + b"\n"
+        if len(data) > self.rx_size:
+            raise self.fail(f"line longer than the firmware's receive buffer: {text[:40]!r}", where)
+        while self._inflight_bytes + len(data) > self.rx_size:
+            self._wait_answers(len(self._inflight) - 1, self.motion_timeout)
+        log.debug("-> %s", text)
+        self.write(data)
+        self._inflight.append((len(data), where))
+        self._inflight_bytes += len(data)
+        self.max_inflight_bytes = max(self.max_inflight_bytes, self._inflight_bytes)
+        self.lines_sent += 1
+
+    def _poll(self):
+        """Handle whatever answers are already waiting, without blocking."""
+        while True:
+            if self._rx.find(b"\n") < 0:
+                try:
+                    waiting = self.port.in_waiting
+                except Exception:
+                    waiting = 0
+                if not waiting:
+                    return
+            line = self.readline(0.0)
+            if line is None:
+                return
+            self._handle(line)
+
+    def _wait_answers(self, at_most, timeout):
+        """Read until no more than ``at_most`` lines are unanswered.
+
+        While waiting on motion, silence is met with a status query: a machine that
+        reports Idle twice while lines are unanswered has lost an ``ok`` (they are
+        then counted as answered); one that does not answer at all has gone away.
+        """
+        deadline = time.monotonic() + timeout
+        idle_polls = 0
+        while len(self._inflight) > at_most:
+            line = self.readline(self.poll_interval)
+            if line is not None:
+                idle_polls = 0
+                self._handle(line)
+                continue
+            if time.monotonic() > deadline:
+                raise self.fail(f"the machine did not finish within {timeout:.0f} s")
+            st = self.status()
+            if st.state == "Alarm":
+                raise self.fail("the machine went into alarm")
+            if st.state == "Idle" and self._rx.find(b"\n") < 0:
+                idle_polls += 1
+                if idle_polls >= 2:
+                    log.warning("the machine is idle with %d lines unanswered: answers were lost",
+                                len(self._inflight))
+                    while len(self._inflight) > at_most:
+                        self._answered()
+            else:
+                idle_polls = 0
+
+    def _answered(self):
+        nbytes, where = self._inflight.popleft()
+        self._inflight_bytes -= nbytes
+        if where.sync and where.item is not None:
+            self.executed.append(where.item)
+        return where
+
+    def _handle(self, line):
+        """One line from the firmware while streaming."""
+        if line.startswith("ok"):
+            if not self._inflight:
+                log.warning("an 'ok' for nothing sent: ignored")
+                return
+            self._answered()
+        elif line.startswith("error"):
+            code = _code(line)
+            where = self._inflight[0][1] if self._inflight else self.where
+            self._answered()
+            self.stop_quietly()
+            raise self.fail(f"the machine refused a line: {grbl_error(code) if code is not None else line}",
+                            where)
+        elif line.startswith("ALARM"):
+            code = _code(line)
+            self.stop_quietly(hold=False)
+            raise self.fail(f"the machine raised {grbl_alarm(code) if code is not None else line}")
+        elif line.startswith("<"):
+            self._status(line)
+        elif _BANNER.match(line):
+            raise self.fail("the firmware reset itself mid-job (it printed its banner again); "
+                            "its position may be lost")
+        elif line.startswith(("[", "$", ">", "Grbl")):
+            log.info("machine says: %s", line)
+        else:
+            self.stop_quietly()
+            raise self.fail(f"the machine answered garbage: {line[:60]!r}")
+
+    # ---- stopping --------------------------------------------------------------------
+    def hold(self, timeout=30.0):
+        """Feed hold (``!``, realtime) and wait until the machine has stopped; returns its status.
+
+        Answers that arrive meanwhile are handled: steps whose sync is answered are
+        still reported through :meth:`take_executed`.
+        """
+        self.state = LinkState.HOLDING
+        self.write(b"!")
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                st = self.status()
+            except Exception:
+                raise
+            if st.stopped:
+                self._poll_quietly()
+                return st
+            if time.monotonic() > deadline:
+                raise self.fail(f"the machine did not stop within {timeout:.0f} s of a feed hold")
+            time.sleep(0.02)
+
+    def _poll_quietly(self):
+        try:
+            while True:
+                line = self.readline(0.05)
+                if line is None:
+                    return
+                if line.startswith("ok"):
+                    if self._inflight:
+                        self._answered()
+                elif line.startswith("<"):
+                    self._status(line)
+        except Exception:
+            return
+
+    def stop_quietly(self, hold=True):
+        """After an error: feed hold and flush, best effort (the real error is raised by the caller)."""
+        state = self.state
+        try:
+            if hold:
+                self.write(b"!")
+        except Exception:
+            pass
+        self.state = state
+
+    def flush(self):
+        """Soft reset (0x18) to drop queued lines once stopped; reads the banner back."""
+        self.write(_RESET)
+        self._inflight.clear()
+        self._inflight_bytes = 0
+        self.drain_input(quiet=0.2, limit=2.0)
+
+    def unanswered(self):
+        """Lines sent and not yet answered (for tests and for resume)."""
+        return [w for _, w in self._inflight]
+
+
+def _code(line):
+    m = re.search(r":\s*(\d+)", line)
+    return int(m.group(1)) if m else None

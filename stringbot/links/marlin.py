@@ -1,0 +1,246 @@
+"""The Marlin link: line numbers, checksums, resends, ``busy`` keepalives, ``M400`` syncs.
+
+Every line goes out as ``N<n> <gcode>*<checksum>`` (XOR of the bytes before
+``*``), one at a time: Marlin answers ``ok`` once it has taken the line.  A
+line that arrives damaged gets ``Error:...``, ``Resend: <n>`` and an ``ok``;
+the link sends line ``n`` again (and any after it).  ``echo:busy: processing``
+while a long command runs keeps the wait alive.  A step counts as executed
+when the ``ok`` of the ``M400`` after its lines arrives (``M400`` waits for
+every move to finish).
+"""
+
+import logging
+import re
+import time
+
+from .base import FirmwareInfo, LineLink, LinkState, Where, strip_comment
+from .codes import marlin_checksum
+
+__all__ = ["MarlinLink", "numbered"]
+
+log = logging.getLogger(__name__)
+
+_RESEND = re.compile(r"^(?:Resend|rs)\s*:?\s*N?(\d+)", re.IGNORECASE)
+_POS = re.compile(r"([XYZABCE]):\s*(-?\d+(?:\.\d+)?)")
+
+
+def numbered(n, text):
+    """The wire form of line ``n``: ``N<n> <text>*<checksum>``."""
+    body = f"N{n} {text}"
+    return f"{body}*{marlin_checksum(body)}"
+
+
+class MarlinLink(LineLink):
+    """A G-code link to Marlin 2.x.
+
+    Parameters
+    ----------
+    port : an open pyserial port
+    sync_line : ``M400``
+    max_resends : resends of one line before giving up
+    """
+
+    dialect = "marlin"
+
+    def __init__(self, port, dialect="marlin", *, sync_line="M400", response_timeout=3.0,
+                 motion_timeout=600.0, max_resends=5, hold_line="M410"):
+        super().__init__(port, response_timeout=response_timeout)
+        self.sync_line = sync_line
+        self.motion_timeout = motion_timeout
+        self.max_resends = max_resends
+        self.hold_line = hold_line
+        self.line_number = 0
+        self.resends = 0
+        self.last_position = None
+        self._history = {}
+        self._swallow = 0
+
+    # ---- identification --------------------------------------------------------------
+    def identify(self):
+        seen = self.drain_input(quiet=0.15, limit=2.5)
+        answer = []
+        for attempt in range(2):
+            self.write(b"M115\n")
+            answer = self._collect_plain(self.response_timeout)
+            if answer or attempt:
+                break
+        lines = tuple(seen) + tuple(answer)
+        joined = " ".join(lines)
+        if re.search(r"\bGrbl", joined, re.IGNORECASE) or "[VER:" in joined or \
+                any(x.startswith("error:") for x in answer):
+            raise self.fail("the machine runs GRBL, but the machine file says dialect 'marlin'; "
+                            "use a machine file for GRBL or check the port")
+        m = re.search(r"FIRMWARE_NAME:\s*Marlin\s*([^\s(]*)", joined)
+        if not m:
+            if lines:
+                raise self.fail(f"the device on the port is not Marlin; it answered {lines[0][:60]!r}")
+            raise self.fail("no answer from the machine (expected Marlin's answer to M115); "
+                            "check the port, the baud rate and that the machine is on")
+        self.info = FirmwareInfo(dialect="marlin", name="Marlin", version=m.group(1), lines=lines)
+        self._reset_numbers()
+        self.state = LinkState.IDENTIFIED
+        log.info("firmware: Marlin %s", self.info.version)
+        return self.info
+
+    def _collect_plain(self, timeout):
+        lines = []
+        deadline = time.monotonic() + timeout
+        while True:
+            line = self.readline(max(0.0, deadline - time.monotonic()))
+            if line is None:
+                return lines
+            lines.append(line)
+            if line.startswith("ok") or line.lower().startswith("error"):
+                return lines
+
+    def _reset_numbers(self):
+        """``M110 N0``: the next line is number 1."""
+        self.line_number = 0
+        self._history = {0: "M110 N0"}
+        self._swallow = 0
+        self._transmit(0, "M110 N0", Where())
+        self._await(0, Where(), self.response_timeout)
+        self.line_number = 1
+
+    # ---- state -----------------------------------------------------------------------
+    def status(self, timeout=None):
+        """``M114``: the position Marlin believes in (no run state: Marlin has none to report)."""
+        from .base import Status
+        self.command("M114", timeout=timeout)
+        return Status(state="Idle", mpos=self.last_position)
+
+    def command(self, text, timeout=None):
+        self._send(text, Where(), timeout or self.response_timeout)
+
+    def prepare(self, *, home=False, preamble=(), home_lines=("G28",)):
+        if home:
+            for line in home_lines:
+                self._send(strip_comment(line), Where(), self.motion_timeout)
+        for line in preamble:
+            line = strip_comment(line)
+            if line:
+                self.command(line)
+        self.state = LinkState.READY
+
+    # ---- streaming -------------------------------------------------------------------
+    def execute(self, steps, lines_for, on_executed=None):
+        """Send each step's lines then ``M400``; the step is executed when ``M400`` is answered."""
+        self.state = LinkState.STREAMING
+        for step in steps:
+            where = Where(step=getattr(step, "index", None), pin=getattr(step, "pin", None))
+            self.where = where
+            for text in lines_for(step):
+                text = strip_comment(text)
+                if text:
+                    self._send(text, where, self.motion_timeout)
+            self._send(self.sync_line, where, self.motion_timeout)
+            self.executed.append(step)
+            for done in self.take_executed():
+                if on_executed is not None:
+                    on_executed(done)
+        self.state = LinkState.READY
+
+    def finish(self, lines=()):
+        for line in lines:
+            line = strip_comment(line)
+            if line:
+                self._send(line, Where(), self.motion_timeout)
+        self._send(self.sync_line, Where(), self.motion_timeout)
+        self.state = LinkState.READY
+
+    def _send(self, text, where, timeout):
+        n = self.line_number
+        self._history[n] = text
+        self._transmit(n, text, where)
+        self.line_number = n + 1
+        self._await(n, where, timeout)
+        self._history.pop(n - 8, None)
+
+    def _transmit(self, n, text, where):
+        wire = numbered(n, text)
+        log.debug("-> %s", wire)
+        self.write(wire.encode("ascii") + b"\n")
+        self.lines_sent += 1
+
+    def _await(self, n, where, timeout):
+        """Wait for line ``n``'s ``ok``, answering resend requests and keepalives.
+
+        Marlin follows every ``Resend: k`` with an ``ok`` that answers nothing;
+        ``self._swallow`` counts those still to come.
+        """
+        deadline = time.monotonic() + timeout
+        silence = time.monotonic() + self.response_timeout
+        probes = 0
+        while True:
+            line = self.readline(max(0.0, min(deadline, silence) - time.monotonic()))
+            now = time.monotonic()
+            if line is None:
+                if now >= deadline:
+                    raise self.fail(f"the machine did not answer within {timeout:.0f} s", where)
+                if probes >= 2:
+                    raise self.fail("the machine stopped answering", where)
+                # silence: the answer may be lost.  Send the line again under its number:
+                # Marlin asks for n+1 if it had it, or for n if it had not.
+                probes += 1
+                self._transmit(n, self._history[n], where)
+                silence = now + self.response_timeout
+                continue
+            silence = now + self.response_timeout
+            low = line.lower()
+            if line.startswith("ok"):
+                if self._swallow:
+                    self._swallow -= 1
+                    continue
+                return
+            m = _RESEND.match(line)
+            if m:
+                want = int(m.group(1))
+                self.resends += 1
+                self._swallow += 1
+                if want == n + 1:
+                    return             # it had line n (its answer was lost)
+                if want != n or self.resends > self.max_resends * 1000:
+                    raise self.fail(f"the machine asked to resend line {want}, but line {n} was sent",
+                                    where)
+                self._transmit(n, self._history[n], where)
+                continue
+            if "busy" in low or low.startswith("wait"):
+                deadline = max(deadline, now + self.response_timeout)
+                continue
+            if low.startswith("error"):
+                if "checksum" in low or "line number" in low:
+                    continue           # a Resend follows
+                self.stop_quietly()
+                raise self.fail(f"the machine reported {line[:80]!r}", where)
+            if low.startswith("echo:unknown command"):
+                self.stop_quietly()
+                raise self.fail(f"the machine did not understand a line: {line[5:80]!r}", where)
+            if low == "start" or low.startswith("echo:marlin") or low.startswith("marlin "):
+                raise self.fail("the firmware reset itself mid-job (it printed its start banner); "
+                                "its position may be lost", where)
+            if line.startswith("X:") and _POS.search(line):
+                self.last_position = tuple(float(v) for _, v in _POS.findall(line.split("Count")[0]))
+                continue
+            if low.startswith(("echo:", "//", "cap:", "firmware_name")):
+                log.info("machine says: %s", line)
+                continue
+            self.stop_quietly()
+            raise self.fail(f"the machine answered garbage: {line[:60]!r}", where)
+
+    # ---- stopping --------------------------------------------------------------------
+    def hold(self, timeout=30.0):
+        """Stop: Marlin's emergency parser takes ``M410`` (quickstop) at once."""
+        self.state = LinkState.HOLDING
+        self.write(self.hold_line.encode("ascii") + b"\n")
+        self.drain_input(quiet=0.2, limit=2.0)
+        from .base import Status
+        return Status(state="Hold", sub="0")
+
+    def stop_quietly(self, hold=True):
+        state = self.state
+        try:
+            if hold:
+                self.write(self.hold_line.encode("ascii") + b"\n")
+        except Exception:
+            pass
+        self.state = state

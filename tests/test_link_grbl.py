@@ -1,0 +1,198 @@
+"""The GRBL / grblHAL link as exact exchange tables over a scripted port."""
+
+import pytest
+import serial
+
+from stringbot.errors import MachineFailure
+from stringbot.links import GrblLink, parse_status
+
+from test_link_scripted import ScriptedPort
+
+BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
+I_GRBL = b"[VER:1.1h.20190825:]\r\n[OPT:V,15,128]\r\nok\r\n"
+I_HAL = b"[VER:1.1f.20230125:]\r\n[OPT:VNML+,100,1024,3,0]\r\n[FIRMWARE:grblHAL]\r\nok\r\n"
+
+
+def link(table, dialect="grbl", **kw):
+    port = ScriptedPort(table)
+    kw.setdefault("response_timeout", 0.3)
+    kw.setdefault("poll_interval", 0.05)
+    return GrblLink(port, dialect, **kw), port
+
+
+def test_identify_grbl_reads_banner_and_buffer():
+    lk, port = link([(None, BANNER), (b"$I\n", I_GRBL)])
+    info = lk.identify()
+    assert info.dialect == "grbl" and info.version == "1.1h"
+    assert lk.rx_size == 127
+    port.assert_done()
+
+
+def test_identify_grblhal_buffer_from_dollar_i():
+    lk, port = link([(None, b"GrblHAL 1.1f ['$' or '$HELP' for help]\r\n"), (b"$I\n", I_HAL)],
+                    "grblhal")
+    info = lk.identify()
+    assert info.dialect == "grblhal" and lk.rx_size == 1024
+    port.assert_done()
+
+
+@pytest.mark.parametrize("dialect, table, words", [
+    ("grbl", [(b"$I\n", I_HAL)], "runs grblHAL"),
+    ("grblhal", [(None, BANNER), (b"$I\n", I_GRBL)], "runs GRBL"),
+    ("grbl", [(b"$I\n", b"echo:Unknown command: \"$I\"\r\nok\r\n")], "runs Marlin"),
+    ("grbl", [(b"$I\n", b"hello world\r\n")], "not GRBL"),
+    ("grbl", [(b"$I\n", b""), (b"$I\n", b"")], "no answer"),
+    ("grbl", [(b"$I\n", b"\xff\xfe\x00garbage\r\n")], "garbage"),
+])
+def test_wrong_or_silent_firmware_refused(dialect, table, words):
+    lk, port = link(table, dialect)
+    with pytest.raises(MachineFailure, match=words):
+        lk.identify()
+    port.assert_done()
+
+
+def ready(extra, dialect="grbl", **kw):
+    lk, port = link([(None, BANNER), (b"$I\n", I_GRBL)] + extra, dialect, **kw)
+    lk.identify()
+    return lk, port
+
+
+def test_prepare_homes_when_asked_and_sets_modal_state():
+    lk, port = ready([
+        (b"?", b"<Alarm|MPos:0.000,0.000,0.000|FS:0,0>\r\n"),
+        (b"$H\n", b"ok\r\n"),
+        (b"G21\n", b"ok\r\n"),
+        (b"G90\n", b"ok\r\n"),
+    ])
+    lk.prepare(home=True, preamble=["G21 ; mm", "G90"])
+    port.assert_done()
+
+
+def test_alarm_without_homing_refused():
+    lk, port = ready([(b"?", b"<Alarm|MPos:0.000,0.000,0.000|FS:0,0>\r\n")])
+    with pytest.raises(MachineFailure, match="alarm"):
+        lk.prepare(home=False)
+    port.assert_done()
+
+
+class FakeStep:
+    def __init__(self, index, pin, lines):
+        self.index, self.pin, self.lines = index, pin, lines
+
+
+def lines_for(step):
+    return step.lines
+
+
+def test_character_counting_fills_but_never_exceeds_the_buffer():
+    # 127 usable bytes: lines of 20 bytes -> 6 in flight (120), the 7th waits for an ok
+    body = [f"G1 X{i:04d}.000 F99999" for i in range(8)]      # 19 chars + \n = 20
+    assert all(len(b) == 19 for b in body)
+    table = [(f"{b}\n".encode(), b"") for b in body[:6]]
+    table += [(None, b"ok\r\n"), (f"{body[6]}\n".encode(), b""),
+              (None, b"ok\r\n"), (f"{body[7]}\n".encode(), b""),
+              (b"G4 P0\n", b"")]                        # 120 + 6 bytes still fit
+    table += [(None, b"ok\r\n")] * 7
+    lk, port = ready(table)
+    done = []
+    lk.execute([FakeStep(0, 5, body)], lines_for, done.append)
+    assert [s.index for s in done] == [0]
+    assert lk.max_inflight_bytes <= 127
+    port.assert_done()
+
+
+def test_step_executed_only_after_its_sync_is_answered():
+    s0 = FakeStep(0, 5, ["G0 X1"])
+    s1 = FakeStep(1, 9, ["G0 X2 ; go"])
+    seen = []
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""),
+             (b"G0 X2\n", b"ok\r\n"), (b"G4 P0\n", b""),
+             (None, b"ok\r\n"), (None, b"ok\r\n"), (None, b"ok\r\n")]
+    lk, port = ready(table)
+
+    def on_done(step):
+        seen.append((step.index, lk.unanswered_count()))
+    lk.unanswered_count = lambda: len(lk.unanswered())
+    lk.execute([s0, s1], lines_for, on_done)
+    # step 0 only after the 2nd ok (its G4 P0), step 1 after the 4th
+    assert seen == [(0, 2), (1, 0)]
+    port.assert_done()
+
+
+def test_error_stops_the_job_naming_pin_and_step():
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (b"G0 Q1\n", b""), (b"G4 P0\n", b""),
+             (None, b"ok\r\nok\r\n"), (None, b"error:20\r\n"), (b"!", b"")]
+    lk, port = ready(table)
+    with pytest.raises(MachineFailure) as info:
+        lk.execute([FakeStep(0, 5, ["G0 X1"]), FakeStep(1, 9, ["G0 Q1"])], lines_for)
+    text = str(info.value)
+    assert "error:20" in text and "pin 9" in text and "step 1" in text
+    port.assert_done()
+
+
+def test_alarm_mid_job_names_pin_and_step():
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"ALARM:2\r\n")]
+    lk, port = ready(table)
+    with pytest.raises(MachineFailure, match=r"ALARM:2.*pin 5, step 0"):
+        lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
+    port.assert_done()
+
+
+def test_reset_banner_mid_job_is_a_failure():
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"ok\r\n" + BANNER)]
+    lk, port = ready(table)
+    with pytest.raises(MachineFailure, match=r"reset itself.*pin 5, step 0"):
+        lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
+    port.assert_done()
+
+
+def test_garbage_mid_job_is_a_failure_and_holds():
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"o#k\r\n"), (b"!", b"")]
+    lk, port = ready(table)
+    with pytest.raises(MachineFailure, match="garbage"):
+        lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
+    port.assert_done()
+
+
+def test_silence_then_lost_ok_is_recovered_from_idle_status():
+    idle = b"<Idle|MPos:1.000,0.000,0.000|Bf:15,127|FS:0,0>\r\n"
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"ok\r\n"),    # the sync's ok is lost
+             (b"?", idle), (b"?", idle)]
+    lk, port = ready(table)
+    done = []
+    lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for, done.append)
+    assert len(done) == 1
+    port.assert_done()
+
+
+def test_silent_machine_times_out_with_a_clear_line():
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (b"?", b"")]
+    lk, port = ready(table)
+    with pytest.raises(MachineFailure, match=r"stopped answering.*pin 5, step 0"):
+        lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
+    port.assert_done()
+
+
+def test_disconnect_mid_job_is_a_failure():
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, serial.SerialException("device disconnected"))]
+    lk, port = ready(table)
+    with pytest.raises(MachineFailure, match=r"lost the connection.*pin 5, step 0"):
+        lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
+    port.assert_done()
+
+
+def test_feed_hold_waits_for_the_machine_to_stop():
+    table = [(b"!", b""), (b"?", b"<Hold:1|MPos:1.000,0.000,0.000|FS:0,0>\r\n"),
+             (b"?", b"<Hold:0|MPos:1.500,0.000,0.000|FS:0,0>\r\n")]
+    lk, port = ready(table)
+    st = lk.hold()
+    assert st.state == "Hold" and st.sub == "0" and st.mpos == (1.5, 0.0, 0.0)
+    port.assert_done()
+
+
+def test_parse_status_forms():
+    st = parse_status("<Idle|MPos:1.000,2.000,3.000|Bf:15,128|FS:0,0>")
+    assert st.state == "Idle" and st.mpos == (1.0, 2.0, 3.0) and st.fields["Bf"] == "15,128"
+    st = parse_status("<Hold:0|WPos:1.0,2.0,3.0,4.0>")
+    assert st.stopped and st.mpos == (1.0, 2.0, 3.0, 4.0)
+    assert not parse_status("<Run|MPos:0,0,0>").stopped

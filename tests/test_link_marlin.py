@@ -1,0 +1,97 @@
+"""The Marlin link as exact exchange tables over a scripted port."""
+
+import pytest
+
+from stringbot.errors import MachineFailure
+from stringbot.links import MarlinLink
+from stringbot.links.marlin import numbered
+
+from test_link_scripted import ScriptedPort
+
+M115 = (b"FIRMWARE_NAME:Marlin 2.1.2 (Nov 1 2026) SOURCE_CODE_URL:github.com/MarlinFirmware/Marlin "
+        b"PROTOCOL_VERSION:1.0 MACHINE_TYPE:stringbot\r\nCap:EMERGENCY_PARSER:1\r\nok\r\n")
+
+
+def w(n, text):
+    return numbered(n, text).encode() + b"\n"
+
+
+def test_checksum_is_the_xor_of_the_bytes_before_the_star():
+    # a line as hosts send it: XOR of "N0 M110 N0"
+    assert numbered(0, "M110 N0") == "N0 M110 N0*125"
+
+
+def link(extra, **kw):
+    table = [(None, b"start\r\necho:Marlin 2.1.2\r\n"), (b"M115\n", M115),
+             (w(0, "M110 N0"), b"ok\r\n")] + extra
+    kw.setdefault("response_timeout", 0.3)
+    lk = MarlinLink(ScriptedPort(table), **kw)
+    lk.identify()
+    return lk, lk.port
+
+
+class FakeStep:
+    def __init__(self, index, pin, lines):
+        self.index, self.pin, self.lines = index, pin, lines
+
+
+def test_identify_and_stream_with_line_numbers_and_m400():
+    table = [(w(1, "G0 X1"), b"ok\r\n"), (w(2, "M400"), b"echo:busy: processing\r\n"),
+             (None, b"ok\r\n")]
+    lk, port = link(table)
+    assert lk.info.dialect == "marlin" and lk.info.version == "2.1.2"
+    done = []
+    lk.execute([FakeStep(0, 3, ["G0 X1 ; move"])], lambda s: s.lines, done.append)
+    assert [s.index for s in done] == [0]
+    port.assert_done()
+
+
+def test_resend_after_a_checksum_error():
+    table = [(w(1, "G0 X1"), b"Error:checksum mismatch, Last Line: 0\r\nResend: 1\r\nok\r\n"),
+             (w(1, "G0 X1"), b"ok\r\n"), (w(2, "M400"), b"ok\r\n")]
+    lk, port = link(table)
+    lk.execute([FakeStep(0, 3, ["G0 X1"])], lambda s: s.lines)
+    assert lk.resends == 1
+    port.assert_done()
+
+
+def test_lost_ok_is_found_by_sending_the_line_again():
+    table = [(w(1, "G0 X1"), b""),    # its ok is lost
+             (w(1, "G0 X1"), b"Error:Line Number is not Last Line Number+1, Last Line: 1\r\n"
+                             b"Resend: 2\r\nok\r\n"),
+             (w(2, "M400"), b"ok\r\n")]
+    lk, port = link(table)
+    lk.execute([FakeStep(0, 3, ["G0 X1"])], lambda s: s.lines)
+    port.assert_done()
+
+
+def test_other_firmware_refused():
+    table = [(None, b"Grbl 1.1h ['$' for help]\r\n"), (b"M115\n", b"error:20\r\n")]
+    lk = MarlinLink(ScriptedPort(table), response_timeout=0.3)
+    with pytest.raises(MachineFailure, match="runs GRBL"):
+        lk.identify()
+    lk.port.assert_done()
+
+
+@pytest.mark.parametrize("reply, words", [
+    (b"Error:Printer halted. kill() called!\r\n", "Printer halted"),
+    (b"start\r\n", "reset itself"),
+    (b"\x01\x02zz\r\n", "garbage"),
+])
+def test_failures_name_pin_and_step(reply, words):
+    table = [(w(1, "G0 X1"), reply), (b"M410\n", b"")]
+    if words == "reset itself":
+        table.pop()
+    lk, port = link(table)
+    with pytest.raises(MachineFailure, match=words) as info:
+        lk.execute([FakeStep(4, 7, ["G0 X1"])], lambda s: s.lines)
+    assert "pin 7, step 4" in str(info.value)
+    port.assert_done()
+
+
+def test_silence_is_a_clear_failure():
+    table = [(w(1, "G0 X1"), b""), (w(1, "G0 X1"), b""), (w(1, "G0 X1"), b"")]
+    lk, port = link(table)
+    with pytest.raises(MachineFailure, match="stopped answering.*pin 7, step 4"):
+        lk.execute([FakeStep(4, 7, ["G0 X1"])], lambda s: s.lines)
+    port.assert_done()
