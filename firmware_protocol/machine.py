@@ -17,7 +17,7 @@ from pathlib import Path
 
 __all__ = [
     "MachineFileError", "Machine", "load_machine", "find_machine_file", "bundled_machines",
-    "AXES",
+    "AXES", "SCHEMA", "DYNAMIXEL_MAX_TURNS", "machine_from_dict",
 ]
 
 #: Axis letters each dialect can drive.
@@ -78,6 +78,9 @@ SCHEMA = {
         "pin0_angle_deg": _Key(float, 0.0, lo=-36000.0, hi=36000.0),
         "travel_deg": _Key(float, 36000.0, lo=360.0, hi=1e7,
                            doc="the ring axis stays within pin0_angle_deg +- travel_deg"),
+        "steps_per_deg": _Key(float, None, lo=0.0, hi=1e6, lo_open=True,
+                              doc="the firmware's steps per degree (GRBL $100 on X); documentation, "
+                                  "shown as the step resolution"),
         "feed_deg_per_min": _Key(float, 36000.0, lo=0.0, hi=1e7, lo_open=True),
         "accel_deg_per_s2": _Key(float, 720.0, lo=0.0, hi=1e7, lo_open=True),
     },
@@ -94,6 +97,10 @@ SCHEMA = {
         "head_axis": _Key(str, None),
         "baud": _Key(int, 115200, lo=1200, hi=4_000_000),
         "homing": _Key(bool, False, doc="home ($H / G28) before winding"),
+        "home_ring_deg": _Key(float, 0.0, lo=-36000.0, hi=36000.0,
+                              doc="ring axis value declared at the home switch after homing"),
+        "home_head_mm": _Key(float, None, lo=-1000.0, hi=1000.0,
+                             doc="head axis value declared at the home switch; default head.in_mm"),
         # kind = "dynamixel" (Protocol 2.0, X series); ignored for G-code machines
         "protocol": _Key(float, 2.0, choices=(2.0,)),
         "ring_id": _Key(int, 1, lo=0, hi=252),
@@ -110,7 +117,20 @@ SCHEMA = {
     "thread": {
         "diameter_mm": _Key(float, lo=0.0, hi=5.0, lo_open=True),
     },
+    # optional section (every key has a default)
+    "winding": {
+        "wrap_direction": _Key(str, "auto", choices=("auto", "cw", "ccw"),
+                               doc="auto: from the incoming and outgoing chords; cw: the ring axis "
+                                   "increases while the head is out (the thread goes round each pin "
+                                   "clockwise as the plan is drawn); ccw: it decreases"),
+        "dwell_s": _Key(float, 0.0, lo=0.0, hi=60.0, doc="pause after each pin (thread settles)"),
+        "pause_every": _Key(int, 0, lo=0, hi=1_000_000, doc="a longer pause every N pins; 0 = never"),
+        "pause_s": _Key(float, 0.0, lo=0.0, hi=3600.0, doc="length of that pause (thread tension)"),
+    },
 }
+
+#: Extended position mode (Operating Mode 4) of X-series servos: +-256 turns of the servo.
+DYNAMIXEL_MAX_TURNS = 256
 
 
 @dataclass(frozen=True)
@@ -214,6 +234,8 @@ def machine_from_dict(doc, *, source="machine"):
     values = {}
     for section, keys in SCHEMA.items():
         table = doc if section == "" else doc.get(section)
+        if section and table is None and all(k.default is not ... for k in keys.values()):
+            table = {}
         if section and table is None:
             raise MachineFileError(f"{source}: missing section [{section}]")
         if not isinstance(table, dict):
@@ -244,6 +266,12 @@ def _check_consistency(m, source):
             if v[key] is None:
                 raise MachineFileError(f"{source}: {key} is missing; expected an integer 0..4095 "
                                        "for kind = 'dynamixel'")
+        reach = (abs(v["ring.pin0_angle_deg"]) + v["ring.travel_deg"]) / 360.0 * v["controller.gear_ratio"]
+        if reach > DYNAMIXEL_MAX_TURNS:
+            raise MachineFileError(
+                f"{source}: ring.travel_deg {v['ring.travel_deg']} (+ |pin0_angle_deg|) turns the ring servo "
+                f"{reach:.1f} turns; expected at most {DYNAMIXEL_MAX_TURNS} (extended position mode), i.e. "
+                f"ring.travel_deg <= {DYNAMIXEL_MAX_TURNS * 360.0 / v['controller.gear_ratio'] - abs(v['ring.pin0_angle_deg']):g}")
         if v["controller.ring_id"] == v["controller.head_id"]:
             raise MachineFileError(f"{source}: controller.ring_id and controller.head_id are both "
                                    f"{v['controller.ring_id']}; expected two different servo ids")

@@ -1,0 +1,184 @@
+"""Hooking moves -> G-code, per firmware dialect (GRBL 1.1, grblHAL, Marlin 2.1).
+
+The dialects differ only where the firmware does: axis letters (stock GRBL has
+X, Y, Z only, so its ring is a "linear" axis set to steps per degree), homing
+(``$H`` versus ``G28``), declaring the homed position (``G10 L20 P1`` versus
+``G92``), the sync point the host waits on (``G4 P0`` versus ``M400``), dwell
+units (GRBL's ``G4 P`` is seconds, Marlin's milliseconds) and the end of the
+program (``M2`` versus an LCD message, since Marlin has no ``M2``).
+
+The host winds step by step: it sends ``dialect.step_lines(step)``, then
+``dialect.sync()``, and records the step once the sync is acknowledged.
+"""
+
+from .estimate import estimate, format_duration
+from .hooking import hook_steps
+
+__all__ = ["GcodeDialect", "GrblDialect", "GrblHalDialect", "MarlinDialect", "dialect_for", "gcode_job",
+           "fmt"]
+
+
+def fmt(value):
+    """A number as G-code: at most 4 decimals, no trailing zeros, no ``-0``."""
+    text = f"{value:.4f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+class GcodeDialect:
+    """What every G-code dialect shares; subclasses set the differences.
+
+    Parameters
+    ----------
+    machine : firmware_protocol.machine.Machine
+    """
+
+    name = "gcode"
+    sync_line = "G4 P0"
+
+    def __init__(self, machine):
+        self.machine = machine
+        self.ring_axis = machine["controller.ring_axis"]
+        self.head_axis = machine["controller.head_axis"]
+
+    # ---- pieces -------------------------------------------------------------------------
+    def preamble(self):
+        """Modal setup: millimetres, absolute positions, feed in units per minute."""
+        return ["G21", "G90", "G94"]
+
+    def home(self):
+        """Homing and declaring the homed position; empty unless ``controller.homing``."""
+        if not self.machine["controller.homing"]:
+            return []
+        return [self.home_command(), self.set_position(*self._home_position())]
+
+    def _home_position(self):
+        m = self.machine
+        head = m["controller.home_head_mm"]
+        return m["controller.home_ring_deg"], m["head.in_mm"] if head is None else head
+
+    def home_command(self):
+        return "$H"
+
+    def set_position(self, ring_deg, head_mm):
+        """Declare the current position (work coordinates) without moving."""
+        return f"G10 L20 P1 {self.ring_axis}{fmt(ring_deg)} {self.head_axis}{fmt(head_mm)}"
+
+    def move_line(self, move):
+        """One ``G1`` line with both axes (absolute) and the feed."""
+        line = f"G1 {self.ring_axis}{fmt(move.ring_deg)} {self.head_axis}{fmt(move.head_mm)}"
+        return line if move.feed is None else f"{line} F{fmt(move.feed)}"
+
+    def dwell(self, seconds):
+        """A pause of ``seconds``."""
+        return f"G4 P{fmt(seconds)}"
+
+    def progress(self, step):
+        """The progress comment of a step: ``; pin 17 (step 5/2530)`` (steps count from 1)."""
+        of = f"/{step.total}" if step.total else ""
+        return f"; pin {step.pin} (step {step.index + 1}{of})"
+
+    def step_lines(self, step):
+        """The lines of one hooking step, the progress comment first."""
+        lines = [self.progress(step)]
+        lines += [self.move_line(mv) for mv in step.moves]
+        if step.dwell_s > 0:
+            lines.append(self.dwell(step.dwell_s))
+        return lines
+
+    def sync(self):
+        """The line whose acknowledgement means all motion so far has finished."""
+        return self.sync_line
+
+    def end(self):
+        return [self.sync(), "M2"]
+
+
+class GrblDialect(GcodeDialect):
+    """GRBL 1.1: X, Y, Z only; ``$H``; ``G4 P0`` as the sync point; ``M2`` ends."""
+
+    name = "grbl"
+
+
+class GrblHalDialect(GcodeDialect):
+    """grblHAL: like GRBL, with rotary axes (the ring on ``A`` in degrees)."""
+
+    name = "grblhal"
+
+
+class MarlinDialect(GcodeDialect):
+    """Marlin 2.1 with a rotary ``A`` axis: ``G28``/``G92``, ``M400`` sync, dwell in ms, no ``M2``."""
+
+    name = "marlin"
+    sync_line = "M400"
+
+    def preamble(self):
+        return ["G21", "G90"]           # Marlin has no G94 (feeds are always per minute)
+
+    def home_command(self):
+        return f"G28 {self.head_axis} {self.ring_axis}"
+
+    def set_position(self, ring_deg, head_mm):
+        return f"G92 {self.ring_axis}{fmt(ring_deg)} {self.head_axis}{fmt(head_mm)}"
+
+    def dwell(self, seconds):
+        return f"G4 P{round(seconds * 1000)}"
+
+    def end(self):
+        return [self.sync(), "M117 stringbot: done"]
+
+
+_DIALECTS = {"grbl": GrblDialect, "grblhal": GrblHalDialect, "marlin": MarlinDialect}
+
+
+def dialect_for(machine):
+    """The G-code dialect object for a ``kind = "gcode"`` machine.
+
+    Raises
+    ------
+    BadInput
+        For a machine that does not speak G-code (``kind = "dynamixel"``).
+    """
+    from ..errors import BadInput
+    if machine["controller.kind"] != "gcode":
+        raise BadInput(f"machine {machine.name!r} has controller.kind = {machine['controller.kind']!r}; "
+                       "expected 'gcode' to write G-code")
+    return _DIALECTS[machine["controller.dialect"]](machine)
+
+
+def gcode_job(plan, machine, *, plan_name=None):
+    """The whole winding job as one G-code program for any sender (UGS, bCNC, OctoPrint).
+
+    Parameters
+    ----------
+    plan : stringbot.planner.Plan
+    machine : firmware_protocol.machine.Machine
+    plan_name : str, optional
+        Shown in the header comment (e.g. the plan's file name).
+
+    Returns
+    -------
+    str
+        Header comment, modal setup, homing (if asked), the steps each with a
+        progress comment, and a clean end; newline-terminated.
+    """
+    dialect = dialect_for(machine)
+    steps = hook_steps(plan, machine)
+    est = estimate(plan, machine, steps=steps)
+    source = (plan.source or {}).get("path", "")
+    lines = [
+        "; stringbot winding job",
+        f"; plan: {plan_name or source or '(unnamed)'} sha256 {plan.sha256()[:16]}",
+        f"; machine: {machine.name} ({dialect.name}; ring on {dialect.ring_axis} in degrees, "
+        f"head on {dialect.head_axis} in mm)",
+        f"; pins: {machine.pins}, steps: {len(steps)}",
+        f"; estimated machine time: {format_duration(est.seconds)}",
+        f"; thread: {est.thread_m:.1f} m; ring travel {est.ring_travel_deg:.0f} deg "
+        f"(shortest-arc lower bound {est.lower_bound_deg:.0f} deg)",
+        "; tie the thread on at the start; the machine hooks every pin of the sequence",
+    ]
+    lines += dialect.preamble()
+    lines += dialect.home()
+    for step in steps:
+        lines += dialect.step_lines(step)
+    lines += dialect.end()
+    return "\n".join(lines) + "\n"

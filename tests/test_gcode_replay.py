@@ -1,0 +1,121 @@
+"""The emitted G-code, replayed against the physical world: exact wraps, zero collisions."""
+
+import random
+import tomllib
+
+import numpy as np
+import pytest
+
+from firmware_protocol.machine import bundled_dir, bundled_machines, load_machine, machine_from_dict
+from firmware_protocol.world import World
+from gcode_replay import replay
+from stringbot.motion import gcode_job, hook_steps
+from stringbot.planner import Plan
+
+GCODE_MACHINES = [n for n in bundled_machines() if load_machine(n)["controller.kind"] == "gcode"]
+
+
+def make_plan(sequence, pins=300):
+    a = np.arange(pins) * 2 * np.pi / pins
+    xy = np.stack([0.5 + 0.5 * np.sin(a), 0.5 - 0.5 * np.cos(a)], axis=1)
+    return Plan(pins=pins, frame="circle", pin_xy=xy, crop={"cx": 50, "cy": 50, "r": 50},
+                sequence=list(sequence), method="hand", parameters={}, stats={},
+                source={"path": "hand.png", "sha256": "0" * 64, "width": 100, "height": 100})
+
+
+def random_sequence(n, pins=300, seed=1):
+    rng = random.Random(seed)
+    seq = [rng.randrange(pins)]
+    while len(seq) < n:
+        p = rng.randrange(pins)
+        if p != seq[-1]:
+            seq.append(p)
+    return seq
+
+
+PLANS = {
+    "long jumps": [0, 150, 1, 151, 2, 152, 299, 149, 75, 225],
+    "neighbours": [10, 11, 12, 13, 12, 11, 10, 9],
+    "seam": [0, 299, 1, 298, 0, 299, 0, 1, 299],
+    "revisits": [5, 100, 5, 100, 5, 6, 5],
+    "one way round": [0, 100, 200] * 12 + [0],          # drifts the ring turn after turn
+    "random": random_sequence(300),
+}
+
+
+def test_there_are_three_gcode_machines():
+    assert {"grbl-ring", "grblhal-ring", "marlin-ring"} <= set(GCODE_MACHINES)
+
+
+@pytest.mark.parametrize("name", GCODE_MACHINES)
+@pytest.mark.parametrize("plan_name", sorted(PLANS))
+def test_replayed_gcode_wraps_exactly_the_plan(name, plan_name):
+    machine = load_machine(name)
+    plan = make_plan(PLANS[plan_name])
+    world, (lo, hi) = replay(gcode_job(plan, machine), machine)
+    assert world.collisions == []
+    assert [w.pin for w in world.wraps] == plan.sequence
+    steps = hook_steps(plan, machine)
+    assert [w.direction for w in world.wraps] == [s.direction for s in steps]
+    assert not world.head_out
+    bound = machine["ring.travel_deg"]
+    pin0 = machine["ring.pin0_angle_deg"]
+    assert pin0 - bound - 1e-6 <= lo and hi <= pin0 + bound + 1e-6
+
+
+def tight(name, travel):
+    doc = tomllib.loads((bundled_dir() / f"{name}.toml").read_text())
+    doc["ring"]["travel_deg"] = travel
+    return machine_from_dict(doc, source="tight")
+
+
+@pytest.mark.parametrize("name", GCODE_MACHINES)
+def test_ring_stays_within_a_tight_travel_bound(name):
+    machine = tight(name, 360.0)
+    plan = make_plan(PLANS["one way round"] + random_sequence(200, seed=7))
+    world, (lo, hi) = replay(gcode_job(plan, machine), machine)
+    assert world.collisions == []
+    assert [w.pin for w in world.wraps] == plan.sequence
+    pin0 = machine["ring.pin0_angle_deg"]
+    assert pin0 - 360.0 - 1e-6 <= lo and hi <= pin0 + 360.0 + 1e-6
+    # the unconstrained machine would have drifted past that bound on the same plan
+    _, (lo2, hi2) = replay(gcode_job(plan, load_machine(name)), load_machine(name))
+    assert hi2 - pin0 > 360.0 or pin0 - lo2 > 360.0
+
+
+@pytest.mark.parametrize("fixed, direction", [("cw", 1), ("ccw", -1)])
+def test_fixed_wrap_direction_is_obeyed(fixed, direction):
+    doc = tomllib.loads((bundled_dir() / "grbl-ring.toml").read_text())
+    doc["winding"]["wrap_direction"] = fixed
+    machine = machine_from_dict(doc, source="fixed")
+    plan = make_plan(PLANS["long jumps"])
+    world, _ = replay(gcode_job(plan, machine), machine)
+    assert world.collisions == []
+    assert [(w.pin, w.direction) for w in world.wraps] == [(p, direction) for p in plan.sequence]
+
+
+def test_hook_steps_replayed_directly_on_the_world():
+    """The moves themselves (as the Dynamixel link would send them), without G-code rounding."""
+    machine = load_machine("grbl-ring")
+    plan = make_plan(random_sequence(500, seed=3))
+    world = World(machine)
+    for step in hook_steps(plan, machine):
+        before = len(world.wraps)
+        for mv in step.moves:
+            world.move(mv.ring_deg, mv.head_mm)
+        assert [(w.pin, w.direction) for w in world.wraps[before:]] == [(step.pin, step.direction)]
+        assert not world.head_out
+    assert world.collisions == []
+
+
+def test_resuming_from_a_later_ring_position():
+    """hook_steps(start_ring_deg=...) plans from where the ring is, e.g. several turns away."""
+    machine = load_machine("grbl-ring")
+    plan = make_plan([40, 200, 7])
+    world = World(machine)
+    world.move(725.0, machine["head.in_mm"])      # two turns and a bit, head IN
+    for step in hook_steps(plan, machine, start_ring_deg=725.0):
+        for mv in step.moves:
+            world.move(mv.ring_deg, mv.head_mm)
+    assert [w.pin for w in world.wraps] == [40, 200, 7] and world.collisions == []
+    assert abs(world.ring_deg - 725.0) < 360.0     # it did not unwind back to zero
