@@ -1,0 +1,442 @@
+"""The Dynamixel link: hooking moves -> two X-series servos through the official ``dynamixel_sdk``.
+
+The ring servo runs in Extended Position Control Mode (multi-turn), the head
+servo in Position Control Mode; both on one Protocol 2.0 bus.  Every move is
+written as Goal Position(s) and :meth:`DynamixelLink.run_step` returns only
+when the servos report Moving = 0 at their goals (read back with one sync
+read per poll), so a step that returned was executed.
+
+Failures are one clear :class:`~stringbot.errors.MachineFailure` each, naming
+the servo (role and id), the step and the pin: a servo that does not answer
+(``COMM_RX_TIMEOUT`` after retries), a corrupted answer (``COMM_RX_CORRUPT``,
+retried first), a hardware error by name (``Overload Error``), a refused write
+by name (``Data Range Error``), a servo that lost torque (power loss or
+reboot), a move that does not arrive in time.
+
+Positions: ring ticks = ring_deg / 360 * gear_ratio * ticks_per_turn (Goal
+Position, within the extended range -1,048,575..1,048,575); head ticks map
+linearly head_in_ticks..head_out_ticks <-> head.in_mm..head.out_mm.
+
+Resume after a power loss or a reboot: the ring servo then reports its
+position within one turn.  ``prepare(resume_at=(ring_deg, head_mm))``, given
+where the machine was last known to be (:meth:`DynamixelLink.position`, which
+the journal keeps), adds the whole turns back through Homing Offset (20), so
+that Present Position is again the ring's multi-turn position.  That is exact
+as long as the ring is within half a servo turn of the hint.
+"""
+
+import enum
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+import dynamixel_sdk as sdk
+import serial
+
+from firmware_protocol import dynamixel as dx
+
+from ..errors import BadInput, MachineFailure
+
+__all__ = ["DynamixelLink", "ServoInfo", "DxlState", "comm_name"]
+
+log = logging.getLogger(__name__)
+
+CT = dx.CONTROL_TABLE
+#: One sync read per poll covers Torque Enable (64) .. Present Position (132..135).
+POLL_START = CT["Torque Enable"].address
+POLL_LENGTH = CT["Present Position"].address + 4 - POLL_START
+_COMM = {getattr(sdk, name): name for name in dir(sdk) if name.startswith("COMM_")}
+
+
+def comm_name(result):
+    """``-3001`` -> ``'COMM_RX_TIMEOUT'``."""
+    return _COMM.get(result, f"COMM result {result}")
+
+
+class DxlState(enum.Enum):
+    """Where the link is; only the link changes it."""
+
+    OPEN = "open"
+    IDENTIFIED = "identified"
+    READY = "ready"
+    MOVING = "moving"
+    HOLDING = "holding"
+    FAILED = "failed"
+    CLOSED = "closed"
+
+
+@dataclass(frozen=True)
+class ServoInfo:
+    role: str            # "ring" or "head"
+    id: int
+    model: int
+    firmware: int
+
+    @property
+    def model_name(self):
+        return dx.MODELS.get(self.model, f"model {self.model}")
+
+
+class _UrlPortHandler(sdk.PortHandler):
+    """The SDK's port handler, opening URLs (``sim://``, ``socket://``) with ``serial_for_url``."""
+
+    def setupPort(self, cflag_baud):
+        if self.is_open:
+            self.closePort()
+        self.ser = serial.serial_for_url(self.port_name, baudrate=self.baudrate, timeout=0)
+        self.is_open = True
+        self.ser.reset_input_buffer()
+        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
+        return True
+
+
+class DynamixelLink:
+    """Two X-series servos (ring, head) on one bus.
+
+    Parameters
+    ----------
+    machine : firmware_protocol.machine.Machine
+        A machine with ``controller.kind = "dynamixel"``.
+    port : str
+        A serial device (``/dev/ttyUSB0``, the emulator's pty path) or a pyserial URL.
+    retries : int
+        Extra attempts after a failed exchange (no answer, corrupted answer).
+    arrival_slack_s : float
+        Seconds allowed beyond twice the profile's time for a move to arrive.
+    """
+
+    def __init__(self, machine, port, *, retries=3, arrival_slack_s=2.0):
+        if machine["controller.kind"] != "dynamixel":
+            raise BadInput(f"machine {machine.name!r} has controller.kind = "
+                           f"{machine['controller.kind']!r}; the Dynamixel link needs 'dynamixel'")
+        self.machine = machine
+        self.url = str(port)
+        self.retries = retries
+        self.arrival_slack_s = arrival_slack_s
+        c = lambda key: machine[f"controller.{key}"]
+        self.tpt, self.gear = c("ticks_per_turn"), c("gear_ratio")
+        self.ids = {"ring": c("ring_id"), "head": c("head_id")}
+        self.role = {v: k for k, v in self.ids.items()}
+        self.head_in, self.head_out = c("head_in_ticks"), c("head_out_ticks")
+        self.state = DxlState.CLOSED
+        self.servos = {}
+        self.goal = {}              # id -> last Goal Position written
+        self.present = {}           # id -> last Present Position read
+        self.where = (None, None)   # (step, pin) running, for messages
+        self.polls = 0
+        self.retried = 0
+        self._check_travel()
+        self.port = (_UrlPortHandler if "://" in self.url else sdk.PortHandler)(self.url)
+        self.ph = sdk.PacketHandler(c("protocol"))
+
+    # ---- units ------------------------------------------------------------------------------
+    def ring_ticks(self, ring_deg):
+        return round(ring_deg / 360.0 * self.gear * self.tpt)
+
+    def ring_deg(self, ticks):
+        return ticks / self.tpt * 360.0 / self.gear
+
+    def head_ticks(self, head_mm):
+        m = self.machine
+        return round(self.head_in + (head_mm - m["head.in_mm"]) * (self.head_out - self.head_in)
+                     / (m["head.out_mm"] - m["head.in_mm"]))
+
+    def head_mm(self, ticks):
+        m = self.machine
+        return m["head.in_mm"] + (ticks - self.head_in) * (m["head.out_mm"] - m["head.in_mm"]) \
+            / (self.head_out - self.head_in)
+
+    def _check_travel(self):
+        m = self.machine
+        pin0, travel = m["ring.pin0_angle_deg"], m["ring.travel_deg"]
+        worst = max(abs(self.ring_ticks(pin0 - travel)), abs(self.ring_ticks(pin0 + travel)))
+        if worst + self.tpt > dx.EXTENDED_POSITION_MAX:
+            limit = (dx.EXTENDED_POSITION_MAX - self.tpt) / self.tpt / self.gear * 360.0 - abs(pin0)
+            raise BadInput(
+                f"{m.path}: ring.travel_deg = {travel:g} takes the ring servo to {worst} ticks, beyond "
+                f"its extended-position range of +-{dx.EXTENDED_POSITION_MAX} (less one turn); expected "
+                f"ring.travel_deg <= {math.floor(limit)} with gear_ratio = {self.gear:g}")
+
+    # ---- failures ---------------------------------------------------------------------------
+    def _fail(self, message):
+        self.state = DxlState.FAILED
+        step, pin = self.where
+        return MachineFailure(message, step=step, pin=pin)
+
+    def _name(self, servo_id):
+        return f"{self.role.get(servo_id, 'unknown')} servo (id {servo_id})"
+
+    def _exchange(self, servo_id, what, call, *args):
+        """Run an SDK call returning (..., result, error); retry COMM failures; check the error byte."""
+        for attempt in range(self.retries + 1):
+            self.port.is_using = False        # an interrupted exchange must not leave the port "busy"
+            out = call(*args)
+            result, error = out[-2], out[-1]
+            if result == sdk.COMM_SUCCESS:
+                break
+            self.retried += 1
+            log.warning("%s: %s %s (attempt %d of %d)", self._name(servo_id), what, comm_name(result),
+                        attempt + 1, self.retries + 1)
+        else:
+            raise self._comm_failure(servo_id, what, result)
+        if error & 0x7F:
+            raise self._fail(f"{self._name(servo_id)} refused {what}: {dx.status_error_name(error & 0x7F)}")
+        if error & dx.ERRBIT_ALERT and what not in ("reading Hardware Error Status", "reboot"):
+            raise self._hardware_failure(servo_id)
+        return out[0] if len(out) == 3 else None
+
+    def _comm_failure(self, servo_id, what, result):
+        hint = {sdk.COMM_RX_TIMEOUT: "it does not answer: check its power, cable, id and baud rate",
+                sdk.COMM_RX_CORRUPT: "its answers arrive corrupted: check the cable and termination",
+                sdk.COMM_PORT_BUSY: "the port is busy"}.get(result, self.ph.getTxRxResult(result))
+        return self._fail(f"{self._name(servo_id)} failed {what}: {comm_name(result)} "
+                          f"after {self.retries + 1} attempts; {hint}")
+
+    def _hardware_failure(self, servo_id):
+        try:
+            bits = self._read(servo_id, "Hardware Error Status")
+        except MachineFailure:
+            bits = 0
+        names = ", ".join(dx.hardware_error_names(bits)) or "Alert bit set"
+        return self._fail(f"{self._name(servo_id)} reports a hardware error: {names}; torque is off "
+                          "until the servo is rebooted (power cycle, or resume which reboots it)")
+
+    # ---- control table ----------------------------------------------------------------------
+    def _read(self, servo_id, name):
+        f = CT[name]
+        call = {1: self.ph.read1ByteTxRx, 2: self.ph.read2ByteTxRx, 4: self.ph.read4ByteTxRx}[f.size]
+        value = self._exchange(servo_id, f"reading {name}", call, self.port, servo_id, f.address)
+        if f.signed and value >= 1 << (8 * f.size - 1):
+            value -= 1 << (8 * f.size)
+        return value
+
+    def _write(self, servo_id, name, value):
+        f = CT[name]
+        call = {1: self.ph.write1ByteTxRx, 2: self.ph.write2ByteTxRx, 4: self.ph.write4ByteTxRx}[f.size]
+        raw = value & ((1 << (8 * f.size)) - 1)
+        self._exchange(servo_id, f"writing {name} = {value}", call, self.port, servo_id, f.address, raw)
+
+    # ---- life -------------------------------------------------------------------------------
+    def connect(self):
+        """Open the port, ping both servos, check their models.  Returns [ServoInfo]."""
+        try:
+            opened = self.port.openPort()
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise BadInput(f"cannot open port {self.url!r}: {str(exc).splitlines()[0] if str(exc) else exc}; "
+                           "give --port the servo adapter's device (e.g. /dev/ttyUSB0) or the emulator's pty")
+        if not opened or not self.port.setBaudRate(self.machine["controller.baud"]):
+            raise BadInput(f"controller.baud = {self.machine['controller.baud']} is not a baud rate the "
+                           "Dynamixel SDK supports; expected e.g. 57600, 115200, 1000000, 2000000, 4000000")
+        self.state = DxlState.OPEN
+        expected = self.machine["controller.model_number"]
+        for role, servo_id in self.ids.items():
+            model, _, _ = self._ping(servo_id)
+            firmware = self._read(servo_id, "Firmware Version")
+            if expected is not None and model != expected:
+                raise self._fail(f"{self._name(servo_id)} is a {dx.MODELS.get(model, f'model {model}')} "
+                                 f"(model number {model}); the machine file expects controller.model_number = "
+                                 f"{expected} ({dx.MODELS.get(expected, 'unknown model')})")
+            self.servos[servo_id] = ServoInfo(role, servo_id, model, firmware)
+        self.state = DxlState.IDENTIFIED
+        log.info("connected: %s", self.describe())
+        return list(self.servos.values())
+
+    def _ping(self, servo_id):
+        for attempt in range(self.retries + 1):
+            self.port.is_using = False
+            model, result, error = self.ph.ping(self.port, servo_id)
+            if result == sdk.COMM_SUCCESS:
+                return model, result, error
+            self.retried += 1
+        raise self._comm_failure(servo_id, "ping", result)
+
+    def describe(self):
+        parts = [f"{s.role} id {s.id}: {s.model_name} fw {s.firmware}" for s in self.servos.values()]
+        return f"Dynamixel Protocol 2.0 on {self.url} ({'; '.join(parts)})"
+
+    def prepare(self, *, resume_at=None):
+        """Torque off, modes, profile, torque on.  Returns the machine's position (ring_deg, head_mm).
+
+        Fresh (``resume_at`` None): the ring's turn count is cleared, so the ring
+        starts within one servo turn of 0.  Resuming: a ring servo that lost its
+        turn count (power loss, reboot) is re-based to the turn nearest ``resume_at``.
+        """
+        ring, head = self.ids["ring"], self.ids["head"]
+        for servo_id in (ring, head):
+            bits = self._read(servo_id, "Hardware Error Status")
+            if bits:
+                log.warning("%s had a hardware error (%s): rebooting it", self._name(servo_id),
+                            ", ".join(dx.hardware_error_names(bits)))
+                self._exchange(servo_id, "reboot", self.ph.reboot, self.port, servo_id)
+                time.sleep(0.1)
+            limit = self._read(servo_id, "Velocity Limit")
+            if self.machine["controller.profile_velocity"] > limit:
+                raise BadInput(f"{self.machine.path}: controller.profile_velocity = "
+                               f"{self.machine['controller.profile_velocity']} exceeds the {self._name(servo_id)}'s "
+                               f"Velocity Limit (44) = {limit}; expected <= {limit}")
+        torque_was_on = self._read(ring, "Torque Enable") == 1
+        for servo_id in (ring, head):
+            self._write(servo_id, "Torque Enable", 0)
+        for servo_id, mode in ((ring, dx.OperatingMode.EXTENDED_POSITION), (head, dx.OperatingMode.POSITION)):
+            if self._read(servo_id, "Operating Mode") != mode:
+                self._write(servo_id, "Operating Mode", mode)
+        if resume_at is None:
+            self._write(ring, "Homing Offset", 0)
+            self._exchange(ring, "clearing the turn count", self.ph.clearMultiTurn, self.port, ring)
+        else:
+            self._rebase(resume_at[0], torque_was_on)
+        for servo_id in (ring, head):
+            self._write(servo_id, "Profile Acceleration", self.machine["controller.profile_acceleration"])
+            self._write(servo_id, "Profile Velocity", self.machine["controller.profile_velocity"])
+            self._write(servo_id, "Torque Enable", 1)
+            self.present[servo_id] = self.goal[servo_id] = self._read(servo_id, "Present Position")
+        self.state = DxlState.READY
+        log.info("ready at ring %.3f deg, head %.3f mm", *self.position())
+        return self.position()
+
+    def _rebase(self, hint_deg, torque_was_on):
+        ring = self.ids["ring"]
+        present = self._read(ring, "Present Position")
+        want = self.ring_ticks(hint_deg)
+        turns = round((want - present) / self.tpt)
+        if torque_was_on or turns == 0:
+            if turns:
+                log.warning("ring servo kept power but is %d turns from where the journal left it; "
+                            "trusting the servo", turns)
+            return
+        offset = self._read(ring, "Homing Offset") + turns * self.tpt
+        if abs(offset) > CT["Homing Offset"].hi:
+            raise self._fail(f"cannot re-base the ring servo by {turns} turns: Homing Offset {offset} "
+                             "is outside +-1,044,479")
+        self._write(ring, "Homing Offset", offset)
+        now = self._read(ring, "Present Position")
+        log.warning("ring servo had lost its turn count (power loss or reboot): re-based by %d turns, "
+                    "%d -> %d ticks (journal: %d)", turns, present, now, want)
+
+    def position(self):
+        """The last position read back: (ring_deg, head_mm)."""
+        return (self.ring_deg(self.present.get(self.ids["ring"], 0)),
+                self.head_mm(self.present.get(self.ids["head"], self.head_in)))
+
+    # ---- motion -----------------------------------------------------------------------------
+    def run_step(self, step):
+        """Execute one :class:`~stringbot.motion.HookStep`; returns when every move has arrived."""
+        self.where = (step.index, step.pin)
+        for move in step.moves:
+            self.move_to(move.ring_deg, move.head_mm)
+        if step.dwell_s:
+            time.sleep(step.dwell_s)
+
+    def move_to(self, ring_deg, head_mm):
+        """Write the goals that change and wait until both servos are there."""
+        ring, head = self.ids["ring"], self.ids["head"]
+        goals = {ring: self.ring_ticks(ring_deg), head: self.head_ticks(head_mm)}
+        if not dx.EXTENDED_POSITION_MIN <= goals[ring] <= dx.EXTENDED_POSITION_MAX:
+            raise self._fail(f"ring goal {ring_deg:.3f} deg = {goals[ring]} ticks is outside the servo's "
+                             f"extended-position range +-{dx.EXTENDED_POSITION_MAX}")
+        if not 0 <= goals[head] < self.tpt:
+            raise self._fail(f"head goal {head_mm:.3f} mm = {goals[head]} ticks is outside one servo turn")
+        changed = {i: g for i, g in goals.items() if g != self.goal.get(i)}
+        if not changed:
+            return
+        self.state = DxlState.MOVING
+        start = dict(self.present)
+        if len(changed) == 1:
+            [(servo_id, goal)] = changed.items()
+            self._write(servo_id, "Goal Position", goal)
+        else:
+            group = sdk.GroupSyncWrite(self.port, self.ph, CT["Goal Position"].address, 4)
+            for servo_id, goal in changed.items():
+                group.addParam(servo_id, list(dx.to_bytes(goal, 4, signed=True)))
+            self.port.is_using = False
+            result = group.txPacket()
+            if result != sdk.COMM_SUCCESS:
+                raise self._comm_failure(ring, "sync-writing Goal Position", result)
+        self.goal.update(changed)
+        self._wait(changed, start)
+        self.state = DxlState.READY
+
+    def _estimate_s(self, distance_ticks):
+        v = (self.machine["controller.profile_velocity"] or 1023) * 0.229 / 60.0 * self.tpt
+        a_units = self.machine["controller.profile_acceleration"]
+        ramp = v / (a_units * 214.577 / 3600.0 * self.tpt) if a_units else 0.0
+        return distance_ticks / v + ramp
+
+    def _wait(self, changed, start):
+        worst = max(abs(g - start.get(i, g)) for i, g in changed.items())
+        deadline = time.monotonic() + 2.0 * self._estimate_s(worst) + self.arrival_slack_s
+        tol = {self.ids["ring"]: max(1, int(self.ring_ticks(self.machine.gap_tolerance_deg) / 4)),
+               self.ids["head"]: max(1, abs(self.head_out - self.head_in) // 100)}
+        while True:
+            table = self._poll()
+            arrived = True
+            for servo_id, data in table.items():
+                torque, hw = data[0], data[CT["Hardware Error Status"].address - POLL_START]
+                moving = data[CT["Moving"].address - POLL_START]
+                present = self.present[servo_id]
+                if hw:
+                    raise self._hardware_failure(servo_id)
+                if not torque:
+                    raise self._fail(f"{self._name(servo_id)} lost torque (power loss or reboot?) on the way "
+                                     f"from {start.get(servo_id)} to {self.goal[servo_id]} ticks; its position "
+                                     "may be re-based to one turn: resume to continue")
+                if moving or abs(present - self.goal[servo_id]) > tol[servo_id]:
+                    arrived = False
+            if arrived:
+                return
+            if time.monotonic() > deadline:
+                late = ", ".join(f"{self._name(i)} at {self.present[i]} for goal {self.goal[i]}"
+                                 for i in table if abs(self.present[i] - self.goal[i]) > tol[i])
+                raise self._fail(f"move did not arrive in time: {late or 'still moving'}")
+
+    def _poll(self):
+        """One sync read of Torque Enable .. Present Position from both servos."""
+        group = sdk.GroupSyncRead(self.port, self.ph, POLL_START, POLL_LENGTH)
+        for servo_id in self.ids.values():
+            group.addParam(servo_id)
+        for attempt in range(self.retries + 1):
+            self.port.is_using = False
+            result = group.txRxPacket()
+            self.polls += 1
+            if result == sdk.COMM_SUCCESS:
+                break
+            self.retried += 1
+            culprit = next((i for i in self.ids.values() if not group.data_dict.get(i)), self.ids["ring"])
+            log.warning("%s: polling %s (attempt %d of %d)", self._name(culprit), comm_name(result),
+                        attempt + 1, self.retries + 1)
+            for servo_id in self.ids.values():
+                group.data_dict[servo_id] = []
+        else:
+            raise self._comm_failure(culprit, "polling its position", result)
+        out = {}
+        for servo_id in self.ids.values():
+            data = bytes(group.data_dict[servo_id])
+            out[servo_id] = data
+            if data[0]:    # with torque off the position may be re-based: keep the last trusted one
+                self.present[servo_id] = dx.from_bytes(data[-4:], signed=True)
+        return out
+
+    def hold(self):
+        """Stop where the servos are (Goal Position := Present Position), torque kept on."""
+        self.state = DxlState.HOLDING
+        for servo_id in self.ids.values():
+            try:
+                here = self._read(servo_id, "Present Position")
+                self._write(servo_id, "Goal Position", here)
+                self.present[servo_id] = self.goal[servo_id] = here
+            except MachineFailure as exc:
+                log.warning("could not stop %s: %s", self._name(servo_id), exc)
+
+    def torque_off(self):
+        for servo_id in self.ids.values():
+            self._write(servo_id, "Torque Enable", 0)
+
+    def close(self):
+        """Close the port; the servos keep their torque (the thread stays tensioned)."""
+        if self.state is not DxlState.CLOSED and self.port.ser is not None:
+            try:
+                self.port.closePort()
+            except Exception:  # closing a dead port must not hide the real error
+                log.debug("closing the port failed", exc_info=True)
+        self.state = DxlState.CLOSED
