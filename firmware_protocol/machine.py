@@ -182,6 +182,49 @@ class Machine:
         """Ring axis position (degrees) at which ``pin`` faces the head station."""
         return self.values["ring.pin0_angle_deg"] + pin * self.pitch_deg
 
+    def to_toml(self):
+        """The checked values as TOML text, defaults filled in (keys left unset are omitted)."""
+        lines = []
+        for section, keys in SCHEMA.items():
+            if section:
+                lines += ["", f"[{section}]"]
+            for key in keys:
+                value = self.values[f"{section}.{key}" if section else key]
+                if value is None:
+                    continue
+                text = ("true" if value else "false") if isinstance(value, bool) else (
+                    f'"{value}"' if isinstance(value, str) else repr(value) if isinstance(value, float)
+                    else str(value))
+                lines.append(f"{key} = {text}")
+        return "\n".join(lines) + "\n"
+
+    def derived(self):
+        """Derived figures as ``(label, text)`` rows: pitch, free gap, gap tolerance, reach."""
+        v = self.values
+        mm_per_deg = math.pi * v["ring.diameter_mm"] / 360.0
+        travel = v["ring.travel_deg"]
+        rows = [
+            ("pitch", f"{self.pitch_deg:.4f} deg = {self.pitch_mm:.3f} mm between pin centres"),
+            ("free gap", f"{self.free_gap_mm:.3f} mm between pins once the thread is in "
+                         f"(pitch - pin {v['ring.pin_diameter_mm']:g} - thread {v['thread.diameter_mm']:g})"),
+            ("gap tolerance", f"+-{self.gap_tolerance_deg:.4f} deg = +-{self.gap_tolerance_deg * mm_per_deg:.3f} mm "
+                              "from a gap centre where the head may cross the pin circle"),
+            ("pin circle", f"the eyelet crosses it at head = {self.circle_mm:g} mm "
+                           f"(IN {v['head.in_mm']:g}, OUT {v['head.out_mm']:g})"),
+            ("ring travel", f"{v['ring.pin0_angle_deg'] - travel:g} .. {v['ring.pin0_angle_deg'] + travel:g} deg "
+                            f"(+-{travel / 360.0:g} turns)"),
+        ]
+        if v["ring.steps_per_deg"]:
+            step = 1.0 / v["ring.steps_per_deg"]
+            rows.append(("ring step", f"{step:.4f} deg = {step * mm_per_deg:.4f} mm at the pins "
+                                      f"({self.gap_tolerance_deg / step:.0f} steps of gap tolerance)"))
+        if v["controller.kind"] == "dynamixel":
+            ticks = v["controller.gear_ratio"] * v["controller.ticks_per_turn"] / 360.0
+            reach = (abs(v["ring.pin0_angle_deg"]) + travel) / 360.0 * v["controller.gear_ratio"]
+            rows.append(("ring servo", f"{ticks:.2f} ticks per ring degree, {ticks * self.pitch_deg:.1f} per pin; "
+                                       f"travel needs {reach:.1f} of {DYNAMIXEL_MAX_TURNS} servo turns"))
+        return rows
+
 
 def bundled_dir():
     """The folder of bundled machine files (installed package data or the source tree)."""
@@ -252,6 +295,9 @@ def machine_from_dict(doc, *, source="machine"):
         extra = set(table) - set(keys) - (set(SCHEMA) if section == "" else set())
         for key in sorted(extra):
             dotted = f"{section}.{key}" if section else key
+            if not section and isinstance(table[key], dict):
+                raise MachineFileError(f"{source}: unknown section [{key}] (a typo?); expected one of "
+                                       f"{', '.join(f'[{s}]' for s in SCHEMA if s)}")
             raise MachineFileError(f"{source}: unknown key {dotted!r} (a typo?); expected one of "
                                    f"{', '.join(sorted(keys))}")
     machine = Machine(name=values["name"], path=source, values=values)
