@@ -208,5 +208,8 @@ def test_silent_servo_and_corrupted_packet(machine):
 def test_fault_syntax_errors_name_the_forms():
     assert [f.kind.value for f in parse_faults("power_loss@move=3, corrupt@packet=1")] == [
         "power_loss", "corrupt"]
+    [a, b, c] = parse_faults("power@12, silent@3:id=2, corrupt@9")
+    assert (a.kind.value, a.at, b.kind.value, b.at, b.servo_id, c.kind.value, c.at) == (
+        "power_loss", 12, "silent", 3, 2, "corrupt", 9)
     with pytest.raises(ValueError, match="expected power_loss@move=N"):
         parse_faults("explode@move=1")

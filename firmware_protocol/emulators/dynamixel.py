@@ -30,6 +30,8 @@ Faults (``faults="power_loss@move=40, corrupt@packet=12"``, comma-separated;
 - ``hardware_error@move=N[:id=I][:bits=B]``: Hardware Error Status B (default 0x20,
   Overload), torque off, the Alert bit in every status packet until REBOOT.
 - ``corrupt@packet=N``: the N-th status packet sent has a flipped byte (bad CRC).
+
+Short forms as for the G-code simulator: ``power@N``, ``silent@N``, ``hardware@N``, ``corrupt@N``.
 """
 
 import enum
@@ -75,8 +77,15 @@ class Fault:
     off_s: float = 0.5
 
 
+_ALIASES = {"power": "power_loss", "hardware": "hardware_error"}
+
+
 def parse_faults(spec):
-    """``"power_loss@move=3:off=1, corrupt@packet=7"`` (or a list of such items) -> [Fault]."""
+    """``"power_loss@move=3:off=1, corrupt@packet=7"`` (or a list of such items) -> [Fault].
+
+    The short forms ``power@3``, ``silent@5``, ``hardware@2``, ``corrupt@7`` (N alone: the move,
+    or for ``corrupt`` the status packet) match the G-code simulator's ``kind@N``.
+    """
     if not spec:
         return []
     items = spec.replace(";", ",").split(",") if isinstance(spec, str) else list(spec)
@@ -86,9 +95,12 @@ def parse_faults(spec):
             continue
         try:
             kind_text, _, rest = item.partition("@")
-            kind = FaultKind(kind_text.strip())
-            opts = dict(part.split("=", 1) for part in rest.split(":"))
+            kind = FaultKind(_ALIASES.get(kind_text.strip(), kind_text.strip()))
             where = "packet" if kind is FaultKind.CORRUPT else "move"
+            parts = rest.split(":")
+            if parts[0].isdigit():                    # the short form kind@N
+                parts[0] = f"{where}={parts[0]}"
+            opts = dict(part.split("=", 1) for part in parts)
             fault = Fault(kind, int(opts.pop(where)))
             if "id" in opts:
                 fault.servo_id = int(opts.pop("id"))
