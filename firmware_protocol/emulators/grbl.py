@@ -1,0 +1,562 @@
+"""Simulated GRBL 1.1h and grblHAL: bytes in, bytes out, on a virtual clock.
+
+What the host sees is what GRBL's own documentation describes
+(``doc/markdown/interface.md``): the banner after every reset, one ``ok`` or
+``error:N`` per line, realtime ``?`` ``!`` ``~`` 0x18 picked off the stream at
+once, status reports, alarms.  The receive buffer is GRBL's: 127 bytes fit
+(``Bf:`` says 128 free when empty); while the firmware is blocked (planner full,
+dwell, homing) the bytes a host oversends beyond that are dropped, and the
+mangled line that results is answered with an error.  The planner holds 15
+blocks and ``ok`` is withheld while it is full.
+
+The firmware's *belief* (machine position, offsets, modal state, alarm) is
+kept apart from the physical axes in :class:`~firmware_protocol.world.World`:
+``physical = belief + offset`` for the ring and head axes.  A soft reset
+(0x18) keeps the machine position (GRBL keeps its step counters; ALARM:3 when
+it was moving); a brown-out (``reset`` fault) or a power loss wipes it, so the
+position reads 0 wherever the axes stand.  ``$H`` moves the head to
+``head.in_mm`` and then the ring to the nearest whole turn (physical), and
+sets belief = physical.
+"""
+
+import enum
+import logging
+
+from ..faults import DISCONNECT_SECONDS, POWER_OFF_SECONDS, FaultPlan
+from ..grbl import UNLOCK_MESSAGE
+from .base import Emulator
+from .grbl_parser import GrblError, GrblParser, fmt, read_words
+from .grbl_system import GRBL, GRBLHAL, default_settings, format_settings, store_setting
+from .motion import MotionQueue
+
+__all__ = ["GrblState", "GrblEmulator", "GrblHalEmulator", "physical_home"]
+
+log = logging.getLogger(__name__)
+
+_EPS = 1e-9
+_ALL_AXES = "XYZABC"
+
+
+def physical_home(machine, ring_now):
+    """Where the home switches are: (ring degrees nearest ``ring_now``, head mm).
+
+    The ring's switch trips once a turn, at ``controller.home_ring_deg`` (0 if
+    the machine file has none); the head's at ``controller.home_head_mm``
+    (default ``head.in_mm``: the head homes to IN).
+    """
+    v = machine.values
+    ring0 = v.get("controller.home_ring_deg") or 0.0
+    head = v.get("controller.home_head_mm")
+    head = v["head.in_mm"] if head is None else head
+    return ring0 + round((ring_now - ring0) / 360.0) * 360.0, head
+
+
+class GrblState(enum.Enum):
+    IDLE = "Idle"
+    RUN = "Run"
+    HOLD = "Hold"
+    JOG = "Jog"
+    ALARM = "Alarm"
+    HOME = "Home"
+    CHECK = "Check"
+    SLEEP = "Sleep"
+
+
+class Power(enum.Enum):
+    ON = "on"
+    OFF = "off"            # a power loss: the firmware is not running
+    UNPLUGGED = "unplugged"  # the cable is out: the firmware runs, the port is gone
+
+
+def clean_line(raw, limit):
+    """GRBL's line reader: drop spaces, control bytes and comments, upcase; (text, overflow)."""
+    out, paren, semicolon, overflow = [], False, False, False
+    for c in raw:
+        ch = chr(c)
+        if paren or semicolon or overflow:
+            if ch == ")" and paren:
+                paren = False
+            continue
+        if c <= 0x20 or ch == "/":
+            continue
+        if ch == "(":
+            paren = True
+        elif ch == ";":
+            semicolon = True
+        elif len(out) >= limit - 1:
+            overflow = True
+        else:
+            out.append(ch.upper() if "a" <= ch <= "z" else ch)
+    return "".join(out), overflow
+
+
+class GrblEmulator(Emulator):
+    """GRBL 1.1h on a virtual clock, driving ``world``.
+
+    Parameters
+    ----------
+    machine : firmware_protocol.machine.Machine
+    world : firmware_protocol.world.World, optional
+        The physical machine (one is made from ``machine`` if not given).
+    faults : str or list of Fault, optional
+        See :mod:`firmware_protocol.faults`.
+    """
+
+    variant = GRBL
+
+    def __init__(self, machine, *, world=None, faults=None):
+        super().__init__()
+        if world is None:
+            from ..world import World
+            world = World(machine)
+        self.machine, self.world = machine, world
+        self.faults = faults if isinstance(faults, FaultPlan) else FaultPlan(faults or ())
+        ring, head = machine["controller.ring_axis"], machine["controller.head_axis"]
+        extra = "".join(a for a in _ALL_AXES if a in (ring, head) and a not in self.variant.base_axes)
+        self.axes = self.variant.base_axes + extra
+        self.ring_i, self.head_i = self.axes.index(ring), self.axes.index(head)
+        self.settings = default_settings(self.variant, self.axes, machine)
+        self.user_string = ""
+        self.startup_lines = ["", ""]
+        self.parser = GrblParser(self.axes)
+        self.motion = MotionQueue(self.variant.planner_blocks, self._rates(), self._accels(),
+                                  [0.0] * len(self.axes))
+        self.offset = [0.0] * len(self.axes)
+        self.state = GrblState.IDLE
+        self.power = Power.ON
+        self._out = bytearray()
+        self._rx = bytearray()
+        self._raw = bytearray()
+        self._task = None          # (generator, waiting predicate, silent) of the line being executed
+        self._timer = None         # virtual time a dwell ends
+        self._port_back_at = None
+        self._wco_counter = self._ovr_counter = 0
+        self.dropped_bytes = 0
+        self._jog_cancelling = False
+        self.after_response = None
+        self._boot(wipe=True, alarm=False)
+
+    # ---- the Emulator interface -------------------------------------------------------------
+    def receive(self, data):
+        if self.power is not Power.ON or not self.port_up:
+            return
+        for c in bytes(data):
+            if c in (0x3F, 0x21, 0x7E, 0x18):
+                self._pump()
+                self._realtime(c)
+            elif c >= 0x80:
+                if c == 0x85:
+                    self._pump()
+                    self._jog_cancel()
+                # overrides (0x90..0xA4) and the door are accepted and ignored; others are discarded
+            elif len(self._rx) < self.variant.rx_size - 1:
+                self._rx.append(c)
+                if c in (0x0A, 0x0D):
+                    self._pump()
+            else:
+                self.dropped_bytes += 1
+        self._pump()
+
+    def transmit(self):
+        data = bytes(self._out)
+        self._out.clear()
+        return data
+
+    def next_event_in(self):
+        times = [self.motion.time_to_event()]
+        if self._timer is not None:
+            times.append(max(self._timer - self.now, 0.0))
+        if self._port_back_at is not None:
+            times.append(max(self._port_back_at - self.now, 0.0))
+        times = [t for t in times if t is not None]
+        return min(times) if times else None
+
+    @property
+    def busy(self):
+        return bool(self._out) or self.next_event_in() is not None
+
+    def advance(self, dt=None):
+        if dt is None:
+            nxt = self.next_event_in()
+            if nxt is None:
+                return 0.0
+            dt = nxt
+        remaining = dt
+        while True:
+            nxt = self.next_event_in()
+            step = remaining if nxt is None else min(nxt, remaining)
+            self._run(step)
+            remaining -= step
+            if remaining <= _EPS:
+                break
+        return dt
+
+    # ---- time ---------------------------------------------------------------------------------
+    def _run(self, step):
+        before = self.motion.position
+        done = self.motion.run(step) if self.power is Power.ON else []
+        self.now += step
+        points = [b.target for b in done] + [self.motion.position]
+        if self.motion.position != before or done:
+            self._move_world(points)
+        if self._port_back_at is not None and self.now >= self._port_back_at - _EPS:
+            self._port_back()
+        self._update_state()
+        self._pump()
+
+    def _move_world(self, points):
+        for p in points:
+            ring = p[self.ring_i] + self.offset[self.ring_i]
+            head = p[self.head_i] + self.offset[self.head_i]
+            if (ring, head) != (self.world.ring_deg, self.world.head_mm):
+                self.world.move(ring, head)
+
+    def _update_state(self):
+        if self.state is GrblState.JOG and self._jog_cancelling and not self.motion.moving:
+            self.motion.clear()
+            self.parser.position = list(self.motion.position)
+            self._jog_cancelling = False
+        if self.state in (GrblState.RUN, GrblState.JOG) and self.motion.empty:
+            self.state = GrblState.IDLE
+
+    # ---- output -----------------------------------------------------------------------------------
+    def _emit(self, line):
+        if self.power is Power.ON and self.port_up:
+            self._out += line.encode("latin-1") + b"\r\n"
+
+    def _respond(self, code, silent=False):
+        if silent:
+            log.info("fault: response %r dropped", "ok" if not code else f"error:{code}")
+            return
+        self._emit("ok" if not code else f"error:{code}")
+
+    # ---- boot, reset, power -------------------------------------------------------------------------
+    def _boot(self, *, wipe, alarm):
+        """(Re)initialise as GRBL's main loop does after power-up or an abort."""
+        self.motion.clear()
+        if wipe:
+            physical = self._physical()
+            self.motion.set_position([0.0] * len(self.axes))
+            self.offset = [0.0] * len(self.axes)
+            self.offset[self.ring_i], self.offset[self.head_i] = physical
+        self.parser.reset(self.motion.position)
+        self._rx.clear()
+        self._raw.clear()
+        self._task, self._timer = None, None
+        self._wco_counter = self._ovr_counter = 0
+        if alarm or (wipe and self.settings[22]) or self.state in (GrblState.ALARM, GrblState.SLEEP):
+            self.state = GrblState.ALARM
+        else:
+            self.state = GrblState.IDLE
+        self._jog_cancelling = False
+        self._emit_banner()
+        if self.state is GrblState.ALARM:
+            self._emit(UNLOCK_MESSAGE)
+        else:
+            self._run_startup_lines()
+
+    def _emit_banner(self):
+        if self.power is Power.ON and self.port_up:
+            self._out += b"\r\n" + self.variant.banner.encode("ascii") + b"\r\n"
+
+    def _physical(self):
+        return [self.world.ring_deg, self.world.head_mm]
+
+    def _soft_reset(self):
+        moving = self.state in (GrblState.RUN, GrblState.JOG, GrblState.HOME) or (
+            self.state is GrblState.HOLD and not self.motion.hold_complete)
+        if moving:
+            self._emit("ALARM:6" if self.state is GrblState.HOME else "ALARM:3")
+        self._boot(wipe=False, alarm=moving)
+
+    def _brownout(self):
+        moving = self.motion.moving or self.state is GrblState.HOME
+        log.info("fault: firmware reset (moving=%s)", moving)
+        if moving:
+            self._emit("ALARM:3")
+        self._boot(wipe=True, alarm=moving)
+
+    def _port_down(self, power, seconds):
+        log.info("fault: port down (%s) for %.2f s", power.value, seconds)
+        self.power = power
+        self.port_up = False
+        self._out.clear()
+        self._rx.clear()
+        self._raw.clear()
+        if power is Power.OFF:
+            self.motion.clear()
+            self._task, self._timer = None, None
+        self._port_back_at = self.now + seconds
+
+    def _port_back(self):
+        was_off = self.power is Power.OFF
+        self._port_back_at = None
+        self.power = Power.ON
+        self.port_up = True
+        if was_off:
+            self.state = GrblState.IDLE
+            self._boot(wipe=True, alarm=False)
+        log.info("port back up")
+
+    def reconnect(self):
+        """The host reopened the port: run the clock until the port is back (no-op if up)."""
+        if self._port_back_at is not None:
+            self.advance(max(self._port_back_at - self.now, 0.0))
+
+    # ---- the main loop --------------------------------------------------------------------------------
+    def _pump(self):
+        """Run GRBL's main loop until it blocks or runs out of input."""
+        while self.power is Power.ON:
+            if self._task is not None:
+                gen, pred, silent = self._task
+                if not pred():
+                    return
+                try:
+                    self._task = (gen, gen.send(None), silent)
+                    continue
+                except StopIteration as stop:
+                    self._task = None
+                    self._respond(stop.value, silent)
+            if not self._rx:
+                return
+            c = self._rx.pop(0)
+            if c in (0x0A, 0x0D):
+                raw = bytes(self._raw)
+                self._raw.clear()
+                self._line(raw)
+            elif len(self._raw) < 4096:
+                self._raw.append(c)
+
+    def _line(self, raw):
+        kinds = self.faults.next_line()
+        if "power" in kinds:
+            self._port_down(Power.OFF, POWER_OFF_SECONDS)
+            return
+        if "disconnect" in kinds:
+            self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
+            return
+        if "reset" in kinds:
+            self._brownout()
+            return
+        if "garble" in kinds and raw:
+            raw = bytearray(raw)
+            raw[len(raw) // 2] = 0x7F
+            log.info("fault: line garbled to %r", bytes(raw))
+        silent = "drop-ok" in kinds
+        if "error" in kinds:
+            log.info("fault: line %r rejected", bytes(raw))
+            self._respond(20, silent)
+            return
+        text, overflow = clean_line(raw, 80)
+        result = self._execute(text, overflow)
+        if hasattr(result, "send"):
+            try:
+                self._task = (result, result.send(None), silent)
+            except StopIteration as stop:
+                self._respond(stop.value, silent)
+        else:
+            self._respond(result, silent)
+        if self.after_response is not None:
+            then, self.after_response = self.after_response, None
+            then()
+
+    def _execute(self, text, overflow):
+        """One line: an error code / 0, or a generator that yields wait predicates and returns one."""
+        if overflow:
+            return 11
+        if not text:
+            return 0
+        if text[0] == "$":
+            from .grbl_commands import system_command
+            return system_command(self, text)
+        if self.state in (GrblState.ALARM, GrblState.JOG, GrblState.SLEEP):
+            return 9
+        try:
+            action = self.parser.execute(text)
+        except GrblError as exc:
+            return exc.code
+        if self.state is GrblState.CHECK:
+            return 0
+        return self._perform(action)
+
+    def _perform(self, action):
+        if action.kind == "move":
+            return self._queue_moves([action.target], rapid=action.rapid, feed=action.feed,
+                                     inverse=action.inverse_time, line_number=action.line_number)
+        if action.kind == "moves":
+            return self._queue_moves(action.targets, rapid=True, feed=0.0, inverse=False,
+                                     line_number=action.line_number)
+        if action.kind == "dwell":
+            return self._dwell(action.seconds)
+        if action.kind == "end":
+            return self._program_end(action)
+        if action.kind == "pause":
+            return self._pause()
+        return 0
+
+    # ---- line tasks (generators: yield a predicate to wait on, return the response code) --------------
+    def _queue_moves(self, targets, *, rapid, feed, inverse, line_number, kind="line"):
+        for target in targets:
+            while self.motion.free <= 0:
+                yield lambda: self.motion.free > 0
+            start = self.motion.blocks[-1].target if self.motion.blocks else tuple(self.motion.position)
+            if self.motion.add(start, target, rapid=rapid, feed=feed, inverse_time=inverse,
+                               line_number=line_number, kind=kind) is not None:
+                if self.state is GrblState.IDLE:
+                    self.state = GrblState.JOG if kind == "jog" else GrblState.RUN
+        return 0
+
+    def _synced(self):
+        return self.motion.empty and self.state not in (GrblState.HOLD,)
+
+    def _dwell(self, seconds):
+        while not self._synced():
+            yield self._synced
+        self._timer = self.now + seconds
+        yield lambda: self.now >= self._timer - _EPS
+        self._timer = None
+        return 0
+
+    def _program_end(self, action):
+        if action.target is not None:
+            yield from self._queue_moves([action.target], rapid=action.rapid, feed=action.feed,
+                                         inverse=False, line_number=action.line_number)
+        while not self._synced():
+            yield self._synced
+        self._emit("[MSG:Pgm End]")
+        return 0
+
+    def _pause(self):
+        while not self._synced():
+            yield self._synced
+        self.state = GrblState.HOLD
+        self.motion.hold()
+        yield lambda: self.state is not GrblState.HOLD
+        return 0
+
+    def _home(self):
+        """``$H``: head to its switch, then the ring to its switch (nearest turn), belief = physical."""
+        self.state = GrblState.HOME
+        ring_phys, head_phys = self._physical()
+        home_ring, home_head = physical_home(self.machine, ring_phys)
+        pos = list(self.motion.position)
+        step1 = list(pos)
+        step1[self.head_i] = home_head - self.offset[self.head_i]
+        step2 = list(step1)
+        step2[self.ring_i] = home_ring - self.offset[self.ring_i]
+        start = pos
+        for target in (step1, step2):
+            self.motion.add(tuple(start), tuple(target), rapid=True, feed=0.0, kind="home")
+            start = target
+        while not self.motion.empty:
+            yield lambda: self.motion.empty
+        physical = self._physical()
+        position = list(self.motion.position)
+        position[self.ring_i], position[self.head_i] = physical
+        self.offset = [0.0] * len(self.axes)
+        self.motion.set_position(position)
+        self.parser.position = list(position)
+        self._wco_counter = 0
+        self.state = GrblState.IDLE
+        self._run_startup_lines()
+        return 0
+
+    def _run_startup_lines(self):
+        for line in self.startup_lines:
+            if not line:
+                continue
+            try:
+                self.parser.execute(line)
+                self._emit(f">{line}:ok")
+            except GrblError as exc:
+                self._emit(f">{line}:error:{exc.code}")
+
+    # ---- realtime ---------------------------------------------------------------------------------------
+    def _realtime(self, c):
+        if c == 0x18:
+            self._soft_reset()
+        elif c == 0x3F:
+            self._emit(self.status_report())
+        elif c == 0x21:
+            if self.state is GrblState.JOG:
+                self._jog_cancel()
+            elif self.state in (GrblState.RUN, GrblState.IDLE):
+                self.state = GrblState.HOLD
+                self.motion.hold()
+        elif c == 0x7E:
+            if self.state is GrblState.HOLD and self.motion.hold_complete:
+                self.motion.resume()
+                self.state = GrblState.IDLE if self.motion.empty else GrblState.RUN
+
+    def _jog_cancel(self):
+        """Decelerate the jog to rest; the rest of it is flushed once stopped (_update_state)."""
+        if self.state is GrblState.JOG:
+            self._jog_cancelling = True
+            self.motion.hold()
+            self._update_state()
+
+    def status_report(self):
+        """The ``<...>`` line for ``?`` (and advances GRBL's WCO/Ov refresh counters)."""
+        state = self.state.value
+        if self.state is GrblState.HOLD:
+            state += ":0" if self.motion.hold_complete or self.motion.empty else ":1"
+        inches = bool(self.settings[13])
+        dec = 4 if inches else 3
+        k = 1 / 25.4 if inches else 1.0
+        pos = self.motion.position
+        wco = self.parser.wco()
+        mask = int(self.settings[10])
+        if mask & 1:
+            fields = ["MPos:" + ",".join(fmt(v * k, dec) for v in pos)]
+        else:
+            fields = ["WPos:" + ",".join(fmt((v - o) * k, dec) for v, o in zip(pos, wco))]
+        if mask & 2:
+            fields.append(f"Bf:{self.motion.free},{self.variant.rx_size - len(self._rx)}")
+        spindle = self.parser.state.speed if self.parser.state.spindle != "M5" else 0.0
+        fields.append(f"FS:{fmt(self.motion.speed * k, 1 if inches else 0)},{fmt(spindle, 0)}")
+        busy = self.state in (GrblState.RUN, GrblState.HOLD, GrblState.JOG, GrblState.HOME)
+        if self._wco_counter > 0:
+            self._wco_counter -= 1
+        else:
+            self._wco_counter = (30 if busy else 10) - 1
+            if self._ovr_counter == 0:
+                self._ovr_counter = 1
+            fields.append("WCO:" + ",".join(fmt(v * k, dec) for v in wco))
+        if self._ovr_counter > 0:
+            self._ovr_counter -= 1
+        else:
+            self._ovr_counter = (20 if busy else 10) - 1
+            fields.append("Ov:100,100,100")
+            acc = ("S" if self.parser.state.spindle == "M3" else "C" if self.parser.state.spindle == "M4"
+                   else "") + ("F" if self.parser.state.coolant == "M8" else "")
+            if acc:
+                fields.append("A:" + acc)
+        return "<" + "|".join([state] + fields) + ">"
+
+    def _rates(self):
+        return [self.settings[110 + i] for i in range(len(self.axes))]
+
+    def _accels(self):
+        return [self.settings[120 + i] for i in range(len(self.axes))]
+
+    def apply_settings(self):
+        """Axis rates and accelerations take effect for the blocks planned next."""
+        self.motion.rates, self.motion.accels = self._rates(), self._accels()
+
+    def format_settings(self):
+        return format_settings(self.settings)
+
+    def store_setting(self, key, value):
+        code = store_setting(self.settings, key, value, len(self.axes))
+        if code == 0:
+            self.apply_settings()
+        return code
+
+    def jog_words(self, text):
+        return read_words(text)
+
+
+class GrblHalEmulator(GrblEmulator):
+    """grblHAL: its banner, a 1024-byte receive buffer, 100 planner blocks, the A axis."""
+
+    variant = GRBLHAL

@@ -1,0 +1,365 @@
+"""GRBL's G-code parser, as the simulated firmware runs it: words, modal state, error codes.
+
+A block (one line, already stripped of spaces and comments and upcased by the
+line reader) is checked the way GRBL 1.1 checks it and either raises
+:class:`GrblError` with GRBL's own code or returns the :class:`Action` it
+commands (motion to a machine-coordinate target, dwell, program end).  The
+parser keeps GRBL's modal state (``$G``), the work coordinate systems
+(``G54``..``G59``, persistent like GRBL's EEPROM) and ``G92``, and its own
+idea of where the last queued motion ends (``position``), which is what GRBL
+plans from.
+
+Not modelled: arcs (``G2``/``G3`` answer ``error:20``), probing (``G38.x``),
+cutter compensation beyond ``G40``, ``G61``, ``M7`` (a compile-time option, off
+in stock builds).
+"""
+
+import math
+from dataclasses import dataclass, field
+
+__all__ = ["GrblError", "Action", "ParserState", "GrblParser", "read_words", "fmt"]
+
+
+class GrblError(Exception):
+    """A block GRBL rejects: ``code`` is the number of ``error:N``."""
+
+    def __init__(self, code, detail=""):
+        super().__init__(f"error:{code} {detail}".strip())
+        self.code = code
+
+
+@dataclass
+class Action:
+    """What an accepted block asks of the machine.
+
+    ``kind``: ``"none"``, ``"move"`` (``target`` machine position, ``rapid``,
+    ``feed`` units/min, ``inverse_time``), ``"moves"`` (``targets`` list,
+    for ``G28``/``G30`` through an intermediate point), ``"dwell"``
+    (``seconds``), ``"end"`` (``M2``/``M30``), ``"pause"`` (``M0``/``M1``).
+    """
+
+    kind: str = "none"
+    target: tuple | None = None
+    targets: list = field(default_factory=list)
+    rapid: bool = False
+    feed: float = 0.0
+    inverse_time: bool = False
+    seconds: float = 0.0
+    line_number: int = 0
+
+
+@dataclass
+class ParserState:
+    """GRBL's ``gc_state``: modal groups, feed, spindle, tool and offsets."""
+
+    motion: str = "G0"
+    coord: int = 0            # 0..5 for G54..G59
+    plane: str = "G17"
+    units: str = "G21"
+    distance: str = "G90"
+    feed_mode: str = "G94"
+    program: str = "M0"
+    spindle: str = "M5"
+    coolant: str = "M9"
+    tool: int = 0
+    feed: float = 0.0
+    speed: float = 0.0
+    g92: list = field(default_factory=list)
+    tlo: float = 0.0
+
+    def report(self):
+        """The ``[GC:...]`` line of ``$G`` (without the line end)."""
+        return (f"[GC:{self.motion} G{54 + self.coord} {self.plane} {self.units} {self.distance} "
+                f"{self.feed_mode} {self.spindle} {self.coolant} T{self.tool} "
+                f"F{_rate(self.feed)} S{_rate(self.speed)}]")
+
+
+def _rate(value):
+    return fmt(value, 0)
+
+
+def fmt(value, decimals):
+    """A number as GRBL's ``printFloat`` writes it (no ``-0``)."""
+    sign = "-" if value < 0 and round(-value, decimals) != 0 else ""
+    return f"{sign}{abs(value):.{decimals}f}"
+
+
+def read_words(block):
+    """Split a cleaned block (``G0X10.5Y2``) into ``[(letter, value_text, value), ...]``.
+
+    Raises GrblError 1 (a value without its letter) or 2 (a letter without a valid number).
+    """
+    words = []
+    i, n = 0, len(block)
+    while i < n:
+        letter = block[i]
+        if not ("A" <= letter <= "Z"):
+            raise GrblError(1, f"expected a letter at {block[i:]!r}")
+        i += 1
+        j = i
+        if j < n and block[j] in "+-":
+            j += 1
+        digits = 0
+        while j < n and (block[j].isdigit() or block[j] == "."):
+            if block[j].isdigit():
+                digits += 1
+            j += 1
+        text = block[i:j]
+        if digits == 0 or text.count(".") > 1:
+            raise GrblError(2, f"bad number after {letter}")
+        words.append((letter, text, float(text)))
+        i = j
+    return words
+
+
+_GROUPS = {  # G word -> modal group
+    0: "motion", 1: "motion", 2: "motion", 3: "motion", 38: "motion", 80: "motion",
+    4: "nonmodal", 10: "nonmodal", 28: "nonmodal", 30: "nonmodal", 53: "nonmodal", 92: "nonmodal",
+    17: "plane", 18: "plane", 19: "plane", 90: "distance", 91: "distance", 93: "feed_mode",
+    94: "feed_mode", 20: "units", 21: "units", 40: "cutter", 43: "tlo", 49: "tlo",
+    54: "coord", 55: "coord", 56: "coord", 57: "coord", 58: "coord", 59: "coord", 61: "control",
+}
+_M_GROUPS = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle", 5: "spindle",
+             8: "coolant", 9: "coolant"}
+_VALUE_LETTERS = "FIJKLNPRST"
+
+
+class GrblParser:
+    """GRBL's parser and its state for ``axes`` (e.g. ``"XYZ"`` or ``"XYZA"``).
+
+    ``coord_systems`` (G54..G59, G28, G30 stored positions) survive resets like
+    GRBL's EEPROM; everything else is reset by :meth:`reset`.
+    """
+
+    def __init__(self, axes):
+        self.axes = axes
+        n = len(axes)
+        self.coord_systems = [[0.0] * n for _ in range(6)]
+        self.g28 = [0.0] * n
+        self.g30 = [0.0] * n
+        self.position = [0.0] * n
+        self.state = ParserState(g92=[0.0] * n)
+
+    def reset(self, position):
+        """Soft reset: default modal state, G92 cleared, planning from ``position``."""
+        self.state = ParserState(g92=[0.0] * len(self.axes))
+        self.position = list(position)
+
+    def wco(self):
+        """Work coordinate offset: active coordinate system + G92 (+ TLO on Z)."""
+        off = [c + g for c, g in zip(self.coord_systems[self.state.coord], self.state.g92)]
+        if "Z" in self.axes:
+            off[self.axes.index("Z")] += self.state.tlo
+        return off
+
+    # ---- the block -----------------------------------------------------------------------
+    def execute(self, block):
+        """Check and apply one cleaned block; returns an :class:`Action` or raises GrblError."""
+        words = read_words(block)
+        st = self.state
+        gcodes, mcodes, values, axis_words = {}, {}, {}, {}
+        for letter, text, value in words:
+            if letter == "G":
+                ival, mant = self._split(value)
+                key = ival if not mant else (ival, mant)
+                group = _GROUPS.get(ival)
+                if group is None or (mant and key not in ((28, 1), (30, 1), (92, 1), (43, 1))):
+                    if ival == 59 and mant:
+                        raise GrblError(29)
+                    raise GrblError(20, f"G{text}")
+                if group in gcodes:
+                    raise GrblError(21, f"G{text}")
+                gcodes[group] = key
+            elif letter == "M":
+                ival, mant = self._split(value)
+                group = _M_GROUPS.get(ival)
+                if group is None or mant:
+                    raise GrblError(20, f"M{text}")
+                if group in mcodes:
+                    raise GrblError(21, f"M{text}")
+                mcodes[group] = ival
+            elif letter in self.axes:
+                if letter in axis_words:
+                    raise GrblError(25, letter)
+                axis_words[letter] = value
+            elif letter in _VALUE_LETTERS:
+                if letter in values:
+                    raise GrblError(25, letter)
+                if letter in "FNPST" and value < 0:
+                    raise GrblError(4, letter)
+                values[letter] = value
+            else:
+                raise GrblError(20, f"{letter}{text}")
+        if "N" in values and values["N"] > 9999999:
+            raise GrblError(27)
+        used = {"N"}
+
+        nonmodal = gcodes.get("nonmodal")
+        motion = gcodes.get("motion")
+        axis_command = "nonmodal" if nonmodal in (10, 28, 30, 92) else None
+        if motion is not None:
+            if axis_command:
+                raise GrblError(24)
+            axis_command = "motion"
+        if motion in (2, 3):
+            raise GrblError(20, "arcs are not supported by this simulator")
+        if motion == 38:
+            raise GrblError(20, "probing is not supported by this simulator")
+        if gcodes.get("tlo") == (43, 1) and "Z" not in self.axes:
+            raise GrblError(37)
+
+        new_motion = motion if motion is not None else st.motion
+        if isinstance(new_motion, str):
+            new_motion = int(new_motion[1:])
+        if axis_words and axis_command is None:
+            axis_command = "motion"
+        inches = gcodes.get("units", int(st.units[1:])) == 20
+        scale = 25.4 if inches else 1.0
+        inverse = gcodes.get("feed_mode", int(st.feed_mode[1:])) == 93
+
+        # feed rate
+        feed = st.feed
+        if "F" in values:
+            used.add("F")
+            feed = values["F"] * scale if not inverse else values["F"]
+        elif inverse:
+            feed = 0.0
+        # dwell
+        if nonmodal == 4:
+            if "P" not in values:
+                raise GrblError(28, "G4 needs P")
+            used.add("P")
+        # G10
+        if nonmodal == 10:
+            if "L" not in values or "P" not in values:
+                raise GrblError(28, "G10 needs L and P")
+            if not axis_words:
+                raise GrblError(26)
+            used.update("LP")
+            if values["L"] not in (2, 20):
+                raise GrblError(20, "G10 L")
+            p = int(values["P"])
+            if p != values["P"] or p > 6:
+                raise GrblError(29 if p > 6 else 20)
+        if nonmodal == 53 and new_motion not in (0, 1):
+            raise GrblError(30)
+        if nonmodal == 92 and not axis_words:
+            raise GrblError(26)
+        if "S" in values:
+            used.add("S")
+        if "T" in values:
+            used.add("T")
+            if values["T"] > 255:
+                raise GrblError(38)
+        if new_motion == 80 and axis_words and axis_command == "motion":
+            raise GrblError(31)
+        move_motion = axis_command == "motion" and new_motion in (0, 1)
+        if move_motion and new_motion == 1 and feed == 0.0:
+            raise GrblError(22)
+        unused = set(values) - used
+        if unused:
+            raise GrblError(36, "".join(sorted(unused)))
+
+        # ---- all checks passed: apply ---------------------------------------------------
+        action = Action(line_number=int(values.get("N", 0)))
+        if "F" in values or inverse:
+            st.feed = feed
+        if "S" in values:
+            st.speed = values["S"]
+        if "T" in values:
+            st.tool = int(values["T"])
+        for group, code in gcodes.items():
+            if group == "motion":
+                st.motion = f"G{code}"
+            elif group == "plane":
+                st.plane = f"G{code}"
+            elif group == "distance":
+                st.distance = f"G{code}"
+            elif group == "feed_mode":
+                st.feed_mode = f"G{code}"
+            elif group == "units":
+                st.units = f"G{code}"
+            elif group == "coord":
+                st.coord = code - 54
+            elif group == "tlo":
+                st.tlo = axis_words.get("Z", 0.0) * scale if code == (43, 1) else 0.0
+        for group, code in mcodes.items():
+            if group == "spindle":
+                st.spindle = f"M{code}"
+            elif group == "coolant":
+                st.coolant = f"M{code}"
+        absolute = st.distance == "G90"
+        wco = self.wco()
+
+        if nonmodal == 4:
+            return Action(kind="dwell", seconds=values["P"], line_number=action.line_number)
+        if nonmodal == 10:
+            idx = int(values["P"]) - 1 if values["P"] else st.coord
+            cs = self.coord_systems[idx]
+            for axis, value in axis_words.items():
+                i = self.axes.index(axis)
+                if values["L"] == 2:
+                    cs[i] = value * scale
+                else:  # L20: current position becomes the given work value
+                    cs[i] = self.position[i] - st.g92[i] - value * scale
+            return action
+        if nonmodal == 92:
+            for axis, value in axis_words.items():
+                i = self.axes.index(axis)
+                st.g92[i] = self.position[i] - self.coord_systems[st.coord][i] - value * scale
+            return action
+        if nonmodal == (92, 1):
+            st.g92 = [0.0] * len(self.axes)
+            return action
+        if nonmodal in ((28, 1), (30, 1)):
+            store = self.g28 if nonmodal == (28, 1) else self.g30
+            store[:] = self.position
+            return action
+        if nonmodal in (28, 30):
+            stored = self.g28 if nonmodal == 28 else self.g30
+            targets = []
+            if axis_words:
+                targets.append(self._target(axis_words, scale, absolute, wco))
+            targets.append(tuple(stored))
+            self.position = list(targets[-1])
+            return Action(kind="moves", targets=targets, rapid=True, line_number=action.line_number)
+        if move_motion and axis_words:
+            use_wco = [0.0] * len(self.axes) if nonmodal == 53 else wco
+            target = self._target(axis_words, scale, absolute and True, use_wco,
+                                  machine=nonmodal == 53)
+            self.position = list(target)
+            action.kind = "move"
+            action.target = target
+            action.rapid = new_motion == 0
+            action.feed = st.feed
+            action.inverse_time = inverse
+        stop = mcodes.get("stop")
+        if stop in (2, 30):
+            st.program = "M0"
+            st.motion, st.coord, st.plane, st.distance, st.feed_mode = "G1", 0, "G17", "G90", "G94"
+            st.spindle, st.coolant, st.g92 = "M5", "M9", [0.0] * len(self.axes)
+            return Action(kind="end", target=action.target, rapid=action.rapid, feed=action.feed,
+                          line_number=action.line_number) if action.kind == "none" else action
+        if stop in (0, 1) and action.kind == "none":
+            return Action(kind="pause", line_number=action.line_number)
+        return action
+
+    def _target(self, axis_words, scale, absolute, wco, machine=False):
+        target = list(self.position)
+        for axis, value in axis_words.items():
+            i = self.axes.index(axis)
+            if machine:
+                target[i] = value * scale
+            elif absolute:
+                target[i] = value * scale + wco[i]
+            else:
+                target[i] = self.position[i] + value * scale
+        return tuple(target)
+
+    @staticmethod
+    def _split(value):
+        ival = int(math.floor(value + 1e-9))
+        mant = int(round(100 * (value - ival)))
+        if mant % 10 == 0:
+            mant //= 10
+        return ival, mant
