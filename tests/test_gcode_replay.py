@@ -119,3 +119,21 @@ def test_resuming_from_a_later_ring_position():
             world.move(mv.ring_deg, mv.head_mm)
     assert [w.pin for w in world.wraps] == [40, 200, 7] and world.collisions == []
     assert abs(world.ring_deg - 725.0) < 360.0     # it did not unwind back to zero
+
+
+@pytest.mark.parametrize("start", [1, 137, 299])
+def test_resuming_mid_plan_keeps_the_plans_wrap_directions(start):
+    machine = load_machine("grblhal-ring")
+    plan = make_plan(random_sequence(300, seed=11))
+    full = hook_steps(plan, machine)
+    world = World(machine)
+    ring_at = 3 * 360.0 + 0.6                         # wherever the ring was left, head IN
+    world.move(ring_at, machine["head.in_mm"])
+    rest = hook_steps(plan, machine, start_ring_deg=ring_at, start_index=start)
+    assert [s.index for s in rest] == list(range(start, 300))
+    assert [s.direction for s in rest] == [s.direction for s in full[start:]]
+    for step in rest:
+        for mv in step.moves:
+            world.move(mv.ring_deg, mv.head_mm)
+    assert [w.pin for w in world.wraps] == plan.sequence[start:] and world.collisions == []
+    assert hook_steps(plan, machine, start_index=300) == []

@@ -100,6 +100,8 @@ def test_bad_plans_are_refused_with_one_clear_line():
     assert "\n" not in str(info.value)
     with pytest.raises(BadInput, match="start ring position"):
         hook_steps(make_plan([0, 4]), m, start_ring_deg=float("inf"))
+    with pytest.raises(BadInput, match="start step is 3; expected a step index 0..2"):
+        hook_steps(make_plan([0, 4]), m, start_index=3)
 
 
 def test_dwell_and_tension_pauses():

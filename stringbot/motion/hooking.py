@@ -165,7 +165,7 @@ def _nearest_allowed(target, p_cur, direction, pins, limit):
     return best
 
 
-def hook_steps(plan, machine, *, start_ring_deg=None):
+def hook_steps(plan, machine, *, start_ring_deg=None, start_index=0):
     """The hooking moves for every pin of the plan's sequence, the first included.
 
     Parameters
@@ -175,6 +175,10 @@ def hook_steps(plan, machine, *, start_ring_deg=None):
     start_ring_deg : float, optional
         Ring axis position the job starts from (default 0.0, where the machine
         powers up or homes).  The head is brought IN there first.
+    start_index : int, optional
+        Plan only the steps from this position in the sequence on (resuming):
+        the ring turns from ``start_ring_deg`` to that pin, and every wrap
+        direction is still the one the whole sequence gives.
 
     Returns
     -------
@@ -203,8 +207,11 @@ def hook_steps(plan, machine, *, start_ring_deg=None):
     p_cur = (start - pin0) / pitch
     seq = [int(p) for p in plan.sequence]
     total = len(seq)
+    if isinstance(start_index, bool) or not isinstance(start_index, int) or not 0 <= start_index <= total:
+        raise BadInput(f"start step is {start_index!r}; expected a step index 0..{total}")
     steps = []
-    for k, pin in enumerate(seq):
+    for k in range(start_index, total):
+        pin = seq[k]
         prev = seq[k - 1] if k > 0 else None
         nxt = seq[k + 1] if k + 1 < total else None
         d = fixed if fixed is not None else wrap_direction(prev, pin, nxt, pins)
@@ -217,7 +224,7 @@ def hook_steps(plan, machine, *, start_ring_deg=None):
         else:
             q = _nearest_allowed(pin - d / 2, p_cur, d, pins, limit)
         moves = []
-        if k == 0:
+        if k == start_index:
             moves.append(Move(start, head_in, head_feed))
         moves += [Move(deg(q), head_in, ring_feed),     # the approach (may be where we are)
                   Move(deg(q), head_out, head_feed),
