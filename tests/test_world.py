@@ -250,3 +250,31 @@ def test_record_is_written_atomically_after_each_wrap(machine, tmp_path):
 def test_rejects_non_finite_positions(machine):
     with pytest.raises(ValueError):
         World(machine).move(float("nan"), 0.0)
+
+
+def test_touching_the_circle_from_outside_keeps_the_hook_open(machine):
+    m = machine
+    w = World(m)
+    w.move(gap(m, 20), m["head.in_mm"])
+    w.move(gap(m, 20), m["head.out_mm"])
+    w.move(gap(m, 21), m["head.out_mm"])
+    w.move(gap(m, 21), m.circle_mm)                       # touch from outside ...
+    w.move(gap(m, 21), m["head.out_mm"])                  # ... and back out: still hooking
+    w.move(gap(m, 22), m["head.out_mm"])
+    w.move(gap(m, 22), m["head.in_mm"])
+    assert w.wraps == [Wrap(21, 1), Wrap(22, 1)] and w.collisions == []
+
+
+def test_segments_split_anywhere_give_the_same_wraps(machine):
+    """An emulator may cut a move into many segments (acceleration slices)."""
+    m = machine
+    path = [(gap(m, 99), m["head.in_mm"]), (gap(m, 99), m["head.out_mm"]),
+            (gap(m, 101), m["head.out_mm"]), (gap(m, 101), m["head.in_mm"])]
+    w = World(m)
+    here = (w.ring_deg, w.head_mm)
+    for target in path:
+        for i in range(1, 8):
+            f = i / 7
+            w.move(here[0] + f * (target[0] - here[0]), here[1] + f * (target[1] - here[1]))
+        here = target
+    assert w.wraps == [Wrap(100, 1), Wrap(101, 1)] and w.collisions == []
