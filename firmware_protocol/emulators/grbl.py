@@ -194,7 +194,7 @@ class GrblEmulator(Emulator):
     # ---- time ---------------------------------------------------------------------------------
     def _run(self, step):
         before = self.motion.position
-        done = self.motion.run(step) if self.power is Power.ON else []
+        done = self.motion.run(step) if self.power is not Power.OFF else []
         self.now += step
         points = [b.target for b in done] + [self.motion.position]
         if self.motion.position != before or done:
@@ -306,7 +306,7 @@ class GrblEmulator(Emulator):
     # ---- the main loop --------------------------------------------------------------------------------
     def _pump(self):
         """Run GRBL's main loop until it blocks or runs out of input."""
-        while self.power is Power.ON:
+        while self.power is not Power.OFF:
             if self._task is not None:
                 gen, pred, silent = self._task
                 if not pred():
