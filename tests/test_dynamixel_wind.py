@@ -66,41 +66,76 @@ def test_wound_through_the_sdk_the_world_wraps_the_plan(machine, plan_name):
     assert not world.head_out
 
 
-def test_resume_after_a_servo_power_loss_is_exact(machine):
+def resume(server, machine, steps, stop):
+    """What a resume does: a new link, re-base, the rest of the stopped step, the other steps."""
+    link = DynamixelLink(machine, server.path)
+    try:
+        link.identify()
+        link.prepare(resume_at=stop["position"])
+        i, k = stop["step_index"], stop["move"]
+        link.execute_lines(steps[i], steps[i].moves[k:])
+        link.execute(steps[i + 1:])
+        return link.position()
+    finally:
+        link.close()
+
+
+@pytest.mark.parametrize("fault", ["power@37", "power@38", "power@39", "power@40", "power@41"])
+def test_resume_after_a_servo_power_loss_is_exact(machine, fault):
+    """Power cut halfway through each kind of move of a step (approach, out, pitch turn, in)."""
     plan = make_plan(PLANS["long jumps"] * 2)
-    server, emu, world = serve(machine, faults="power_loss@move=37")
+    server, emu, world = serve(machine, faults=fault)
     try:
         link = DynamixelLink(machine, server.path)
-        link.connect()
+        link.identify()
         steps = hook_steps(plan, machine, start_ring_deg=link.prepare()[0])
-        done = 0
+        executed = []
         with pytest.raises(MachineFailure, match="lost torque") as failure:
-            for step in steps:
-                link.run_step(step)
-                done += 1
-        hint = link.position()          # what the journal keeps
+            link.execute(steps, executed.append)
+        stop = link.stop_point()            # what the journal keeps
         link.close()
-        assert failure.value.step == done
-        assert 0 < done < len(steps) - 1
-        wrapped = len(world.wraps)
-        # a new process: reconnect, re-base, re-plan from the last finished step, go on
-        link = DynamixelLink(machine, server.path)
-        link.connect()
-        ring_deg, head_mm = link.prepare(resume_at=hint)
-        assert (ring_deg, head_mm) == (pytest.approx(world.ring_deg, abs=0.03),
-                                       pytest.approx(world.head_mm, abs=0.03))
-        redo = steps[done]
-        if world.head_out:
-            # the failed step was cut while out: back the way it came, through the same gap
-            back = [m for m in redo.moves if m.head_mm == machine["head.out_mm"]][0]
-            link.move_to(back.ring_deg, back.head_mm)
-            link.move_to(back.ring_deg, machine["head.in_mm"])
-        rest = hook_steps(make_plan(plan.sequence[done:]), machine, start_ring_deg=link.position()[0])
-        for step in rest:
-            link.run_step(step)
-        link.close()
+        assert stop["step_index"] == len(executed) and failure.value.step == len(executed) + 1
+        assert stop["move"] is not None and 0 < len(executed) < len(steps) - 1
+        assert emu.ring.get("Torque Enable") == 0 and emu.ring.present < 4096   # re-based to one turn
+        resume(server, machine, steps, stop)
     finally:
         server.close()
     assert world.collisions == []
     assert [w.pin for w in world.wraps] == plan.sequence
-    assert wrapped == done
+    assert [w.direction for w in world.wraps] == [s.direction for s in steps]
+    assert not world.head_out
+
+
+def test_ctrl_c_holds_and_resume_is_exact(machine):
+    """KeyboardInterrupt lands inside an SDK exchange; hold stops the servos; resume finishes."""
+    import signal
+
+    plan = make_plan(PLANS["random"])
+    server, emu, world = serve(machine)
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        link = DynamixelLink(machine, server.path)
+        link.identify()
+        steps = hook_steps(plan, machine, start_ring_deg=link.prepare()[0])
+        signal.setitimer(signal.ITIMER_REAL, 0.08)
+        with pytest.raises(KeyboardInterrupt):
+            link.execute(steps)
+        status = link.hold()
+        assert status.state == "Hold" and emu.ring.motion is None and emu.head.motion is None
+        stop = link.stop_point()
+        done = link.take_executed()
+        link.close()
+        assert 0 < len(done) < len(steps) and stop["step_index"] == len(done)
+        assert status.mpos == (pytest.approx(world.ring_deg, abs=0.03), pytest.approx(world.head_mm, abs=0.03))
+        resume(server, machine, steps, stop)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+        server.close()
+    assert world.collisions == []
+    assert [w.pin for w in world.wraps] == plan.sequence
+    assert [w.direction for w in world.wraps] == [s.direction for s in steps]

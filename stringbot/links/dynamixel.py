@@ -25,7 +25,6 @@ that Present Position is again the ring's multi-turn position.  That is exact
 as long as the ring is within half a servo turn of the hint.
 """
 
-import enum
 import logging
 import math
 import time
@@ -37,8 +36,10 @@ import serial
 from firmware_protocol import dynamixel as dx
 
 from ..errors import BadInput, MachineFailure
+from .base import FirmwareInfo, LinkState, Status
+from .ports import open_port
 
-__all__ = ["DynamixelLink", "ServoInfo", "DxlState", "comm_name"]
+__all__ = ["DynamixelLink", "ServoInfo", "open_dynamixel_link", "comm_name"]
 
 log = logging.getLogger(__name__)
 
@@ -54,18 +55,6 @@ def comm_name(result):
     return _COMM.get(result, f"COMM result {result}")
 
 
-class DxlState(enum.Enum):
-    """Where the link is; only the link changes it."""
-
-    OPEN = "open"
-    IDENTIFIED = "identified"
-    READY = "ready"
-    MOVING = "moving"
-    HOLDING = "holding"
-    FAILED = "failed"
-    CLOSED = "closed"
-
-
 @dataclass(frozen=True)
 class ServoInfo:
     role: str            # "ring" or "head"
@@ -79,12 +68,12 @@ class ServoInfo:
 
 
 class _UrlPortHandler(sdk.PortHandler):
-    """The SDK's port handler, opening URLs (``sim://``, ``socket://``) with ``serial_for_url``."""
+    """The SDK's port handler, opening URLs (``sim://``, ``socket://``) through :func:`open_port`."""
 
     def setupPort(self, cflag_baud):
         if self.is_open:
             self.closePort()
-        self.ser = serial.serial_for_url(self.port_name, baudrate=self.baudrate, timeout=0)
+        self.ser = open_port(self.port_name, baudrate=self.baudrate, timeout=0)
         self.is_open = True
         self.ser.reset_input_buffer()
         self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
@@ -119,13 +108,18 @@ class DynamixelLink:
         self.ids = {"ring": c("ring_id"), "head": c("head_id")}
         self.role = {v: k for k, v in self.ids.items()}
         self.head_in, self.head_out = c("head_in_ticks"), c("head_out_ticks")
-        self.state = DxlState.CLOSED
+        self.state = LinkState.CLOSED
         self.servos = {}
         self.goal = {}              # id -> last Goal Position written
         self.present = {}           # id -> last Present Position read
         self.where = (None, None)   # (step, pin) running, for messages
         self.polls = 0
+        self.packets = 0
         self.retried = 0
+        self._move_index = None
+        self._step_index = None
+        self.info = None
+        self._executed = []         # steps executed but not yet handed to the wind loop
         self._check_travel()
         self.port = (_UrlPortHandler if "://" in self.url else sdk.PortHandler)(self.url)
         self.ph = sdk.PacketHandler(c("protocol"))
@@ -160,7 +154,7 @@ class DynamixelLink:
 
     # ---- failures ---------------------------------------------------------------------------
     def _fail(self, message):
-        self.state = DxlState.FAILED
+        self.state = LinkState.FAILED
         step, pin = self.where
         return MachineFailure(message, step=step, pin=pin)
 
@@ -218,17 +212,25 @@ class DynamixelLink:
         self._exchange(servo_id, f"writing {name} = {value}", call, self.port, servo_id, f.address, raw)
 
     # ---- life -------------------------------------------------------------------------------
-    def connect(self):
-        """Open the port, ping both servos, check their models.  Returns [ServoInfo]."""
+    def open(self):
+        """Open the port at ``controller.baud`` (no bus traffic yet)."""
+        if self.state is not LinkState.CLOSED:
+            return
         try:
             opened = self.port.openPort()
         except (serial.SerialException, OSError, ValueError) as exc:
-            raise BadInput(f"cannot open port {self.url!r}: {str(exc).splitlines()[0] if str(exc) else exc}; "
-                           "give --port the servo adapter's device (e.g. /dev/ttyUSB0) or the emulator's pty")
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise BadInput(f"cannot open port {self.url!r}: {first}; give --port the servo adapter's "
+                           "device (e.g. /dev/ttyUSB0) or the emulator's pty") from None
         if not opened or not self.port.setBaudRate(self.machine["controller.baud"]):
+            self.port.closePort()
             raise BadInput(f"controller.baud = {self.machine['controller.baud']} is not a baud rate the "
                            "Dynamixel SDK supports; expected e.g. 57600, 115200, 1000000, 2000000, 4000000")
-        self.state = DxlState.OPEN
+        self.state = LinkState.OPEN
+
+    def connect(self):
+        """Open the port, ping both servos, check their models.  Returns [ServoInfo]."""
+        self.open()
         expected = self.machine["controller.model_number"]
         for role, servo_id in self.ids.items():
             model, _, _ = self._ping(servo_id)
@@ -238,7 +240,11 @@ class DynamixelLink:
                                  f"(model number {model}); the machine file expects controller.model_number = "
                                  f"{expected} ({dx.MODELS.get(expected, 'unknown model')})")
             self.servos[servo_id] = ServoInfo(role, servo_id, model, firmware)
-        self.state = DxlState.IDENTIFIED
+        self.state = LinkState.IDENTIFIED
+        models = sorted({s.model_name for s in self.servos.values()})
+        self.info = FirmwareInfo(dialect="dynamixel", name=f"Dynamixel {' + '.join(models)}",
+                                 version=f"fw {'/'.join(str(s.firmware) for s in self.servos.values())}",
+                                 lines=(self.describe(),))
         log.info("connected: %s", self.describe())
         return list(self.servos.values())
 
@@ -291,7 +297,7 @@ class DynamixelLink:
             self._write(servo_id, "Profile Velocity", self.machine["controller.profile_velocity"])
             self._write(servo_id, "Torque Enable", 1)
             self.present[servo_id] = self.goal[servo_id] = self._read(servo_id, "Present Position")
-        self.state = DxlState.READY
+        self.state = LinkState.READY
         log.info("ready at ring %.3f deg, head %.3f mm", *self.position())
         return self.position()
 
@@ -319,17 +325,78 @@ class DynamixelLink:
         return (self.ring_deg(self.present.get(self.ids["ring"], 0)),
                 self.head_mm(self.present.get(self.ids["head"], self.head_in)))
 
+    # ---- the wind loop's interface (stringbot.winding) ---------------------------------------
+    def identify(self):
+        """Ping both servos and check their models; returns :class:`FirmwareInfo`."""
+        self.connect()
+        return self.info
+
+    def execute(self, steps, on_executed=None):
+        """Run ``steps`` in order; ``on_executed(step)`` after each one has arrived."""
+        for step in steps:
+            self.run_step(step, on_executed=on_executed)
+
+    def execute_lines(self, step, moves, on_executed=None):
+        """Run the rest of ``step`` after a stop: ``moves`` are its Moves from the interrupted one on.
+
+        Each Move is an absolute target, so re-issuing the interrupted move from
+        wherever the axes stopped finishes the same straight path (see :meth:`stop_point`).
+        """
+        self.run_step(step, moves=moves, on_executed=on_executed)
+
+    def finish(self):
+        """Nothing to park: the last step ends with the head IN; torque stays on."""
+        self.state = LinkState.READY
+
+    def take_executed(self):
+        done, self._executed = self._executed, []
+        return done
+
+    def status(self):
+        """A firmware-neutral :class:`Status`; ``mpos`` = (ring_deg, head_mm) last read back."""
+        state = {LinkState.HOLDING: "Hold", LinkState.FAILED: "Alarm"}.get(self.state, "Idle")
+        return Status(state=state, sub="0" if state == "Hold" else "", mpos=self.position(),
+                      fields={"stop": self.stop_point()})
+
+    def stop_point(self):
+        """Where a stop left the job: ``{"step_index", "move", "position"}`` for the journal.
+
+        ``move`` is the index in the step's moves of the move that was running
+        (its target not reached); resume with ``execute_lines(step, step.moves[move:])``
+        after ``prepare(resume_at=position)``.
+        """
+        return {"step_index": self._step_index, "move": self._move_index, "position": list(self.position())}
+
+    @property
+    def lines_sent(self):
+        """Instruction packets sent (writes and polls), the analogue of G-code lines."""
+        return self.packets + self.polls
+
     # ---- motion -----------------------------------------------------------------------------
-    def run_step(self, step):
-        """Execute one :class:`~stringbot.motion.HookStep`; returns when every move has arrived."""
-        self.where = (step.index, step.pin)
-        for move in step.moves:
+    def run_step(self, step, *, moves=None, on_executed=None):
+        """Execute one :class:`~stringbot.motion.HookStep` (or the rest of it: ``moves``)."""
+        self.where = (step.index + 1, step.pin)       # people count steps from 1
+        self._step_index = step.index
+        moves = step.moves if moves is None else moves
+        first = len(step.moves) - len(moves)
+        for k, move in enumerate(moves):
+            self._move_index = first + k
             self.move_to(move.ring_deg, move.head_mm)
+        self._move_index = None
         if step.dwell_s:
             time.sleep(step.dwell_s)
+        if on_executed is not None:
+            on_executed(step)
+        else:
+            self._executed.append(step)
 
     def move_to(self, ring_deg, head_mm):
-        """Write the goals that change and wait until both servos are there."""
+        """Write the goals that change and wait until both servos are there.
+
+        Both axes move together (one sync write) only while the head stays on the
+        IN side; otherwise the head goes IN first, or OUT last, so that servos that
+        do not interpolate never cross the pin circle away from a gap.
+        """
         ring, head = self.ids["ring"], self.ids["head"]
         goals = {ring: self.ring_ticks(ring_deg), head: self.head_ticks(head_mm)}
         if not dx.EXTENDED_POSITION_MIN <= goals[ring] <= dx.EXTENDED_POSITION_MAX:
@@ -338,9 +405,19 @@ class DynamixelLink:
         if not 0 <= goals[head] < self.tpt:
             raise self._fail(f"head goal {head_mm:.3f} mm = {goals[head]} ticks is outside one servo turn")
         changed = {i: g for i, g in goals.items() if g != self.goal.get(i)}
-        if not changed:
-            return
-        self.state = DxlState.MOVING
+        if len(changed) == 2 and not (self._inside(self.goal[head]) and self._inside(goals[head])):
+            order = (head, ring) if self._inside(goals[head]) else (ring, head)
+            for servo_id in order:
+                self._go({servo_id: goals[servo_id]})
+        elif changed:
+            self._go(changed)
+
+    def _inside(self, head_ticks):
+        """Head on the IN side of the pin circle (midway IN..OUT)."""
+        return abs(head_ticks - self.head_in) < abs(head_ticks - self.head_out)
+
+    def _go(self, changed):
+        self.state = LinkState.STREAMING
         start = dict(self.present)
         if len(changed) == 1:
             [(servo_id, goal)] = changed.items()
@@ -352,10 +429,11 @@ class DynamixelLink:
             self.port.is_using = False
             result = group.txPacket()
             if result != sdk.COMM_SUCCESS:
-                raise self._comm_failure(ring, "sync-writing Goal Position", result)
+                raise self._comm_failure(self.ids["ring"], "sync-writing Goal Position", result)
+        self.packets += 1
         self.goal.update(changed)
         self._wait(changed, start)
-        self.state = DxlState.READY
+        self.state = LinkState.READY
 
     def _estimate_s(self, distance_ticks):
         v = (self.machine["controller.profile_velocity"] or 1023) * 0.229 / 60.0 * self.tpt
@@ -418,8 +496,13 @@ class DynamixelLink:
         return out
 
     def hold(self):
-        """Stop where the servos are (Goal Position := Present Position), torque kept on."""
-        self.state = DxlState.HOLDING
+        """Stop where the servos are (Goal Position := Present Position), torque kept on.
+
+        Returns the :class:`Status` after stopping (``mpos`` = (ring_deg, head_mm)).
+        """
+        time.sleep(0.02)                  # let an answer to an interrupted exchange arrive ...
+        self.port.is_using = False
+        self.port.clearPort()             # ... and drop it
         for servo_id in self.ids.values():
             try:
                 here = self._read(servo_id, "Present Position")
@@ -427,6 +510,8 @@ class DynamixelLink:
                 self.present[servo_id] = self.goal[servo_id] = here
             except MachineFailure as exc:
                 log.warning("could not stop %s: %s", self._name(servo_id), exc)
+        self.state = LinkState.HOLDING
+        return self.status()
 
     def torque_off(self):
         for servo_id in self.ids.values():
@@ -434,9 +519,23 @@ class DynamixelLink:
 
     def close(self):
         """Close the port; the servos keep their torque (the thread stays tensioned)."""
-        if self.state is not DxlState.CLOSED and self.port.ser is not None:
+        if self.state is not LinkState.CLOSED and self.port.ser is not None:
             try:
                 self.port.closePort()
             except Exception:  # closing a dead port must not hide the real error
                 log.debug("closing the port failed", exc_info=True)
-        self.state = DxlState.CLOSED
+        self.state = LinkState.CLOSED
+
+
+def open_dynamixel_link(url, machine, **options):
+    """The step-level link for a ``kind = "dynamixel"`` machine, its port open (``stringbot.links.open_link``).
+
+    ``options``: ``retries``, ``arrival_slack_s``; others (meant for G-code links) are ignored.
+    """
+    known = {k: v for k, v in options.items() if k in ("retries", "arrival_slack_s")}
+    ignored = sorted(set(options) - set(known))
+    if ignored:
+        log.debug("Dynamixel link ignores options %s", ", ".join(ignored))
+    link = DynamixelLink(machine, url, **known)
+    link.open()
+    return link
