@@ -126,14 +126,14 @@ def test_error_stops_the_job_naming_pin_and_step():
     with pytest.raises(MachineFailure) as info:
         lk.execute([FakeStep(0, 5, ["G0 X1"]), FakeStep(1, 9, ["G0 Q1"])], lines_for)
     text = str(info.value)
-    assert "error:20" in text and "pin 9" in text and "step 1" in text
+    assert "error:20" in text and "pin 9" in text and "step 2" in text
     port.assert_done()
 
 
 def test_alarm_mid_job_names_pin_and_step():
     table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"ALARM:2\r\n")]
     lk, port = ready(table)
-    with pytest.raises(MachineFailure, match=r"ALARM:2.*pin 5, step 0"):
+    with pytest.raises(MachineFailure, match=r"ALARM:2.*pin 5, step 1"):
         lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
     port.assert_done()
 
@@ -141,7 +141,7 @@ def test_alarm_mid_job_names_pin_and_step():
 def test_reset_banner_mid_job_is_a_failure():
     table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"ok\r\n" + BANNER)]
     lk, port = ready(table)
-    with pytest.raises(MachineFailure, match=r"reset itself.*pin 5, step 0"):
+    with pytest.raises(MachineFailure, match=r"reset itself.*pin 5, step 1"):
         lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
     port.assert_done()
 
@@ -168,7 +168,7 @@ def test_silence_then_lost_ok_is_recovered_from_idle_status():
 def test_silent_machine_times_out_with_a_clear_line():
     table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (b"?", b"")]
     lk, port = ready(table)
-    with pytest.raises(MachineFailure, match=r"stopped answering.*pin 5, step 0"):
+    with pytest.raises(MachineFailure, match=r"stopped answering.*pin 5, step 1"):
         lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
     port.assert_done()
 
@@ -176,7 +176,7 @@ def test_silent_machine_times_out_with_a_clear_line():
 def test_disconnect_mid_job_is_a_failure():
     table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, serial.SerialException("device disconnected"))]
     lk, port = ready(table)
-    with pytest.raises(MachineFailure, match=r"lost the connection.*pin 5, step 0"):
+    with pytest.raises(MachineFailure, match=r"lost the connection.*pin 5, step 1"):
         lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for)
     port.assert_done()
 

@@ -85,13 +85,13 @@ def test_failures_name_pin_and_step(reply, words):
     lk, port = link(table)
     with pytest.raises(MachineFailure, match=words) as info:
         lk.execute([FakeStep(4, 7, ["G0 X1"])], lambda s: s.lines)
-    assert "pin 7, step 4" in str(info.value)
+    assert "pin 7, step 5" in str(info.value)
     port.assert_done()
 
 
 def test_silence_is_a_clear_failure():
     table = [(w(1, "G0 X1"), b""), (w(1, "G0 X1"), b""), (w(1, "G0 X1"), b"")]
     lk, port = link(table)
-    with pytest.raises(MachineFailure, match="stopped answering.*pin 7, step 4"):
+    with pytest.raises(MachineFailure, match="stopped answering.*pin 7, step 5"):
         lk.execute([FakeStep(4, 7, ["G0 X1"])], lambda s: s.lines)
     port.assert_done()

@@ -15,9 +15,10 @@ from ..errors import BadInput
 from .base import FirmwareInfo, LinkState, Status, Where, strip_comment
 from .grbl import GrblLink, parse_status
 from .marlin import MarlinLink
+from .job import GcodeMachineLink, gcode_machine_link
 from .ports import open_port, sim_url
 
-__all__ = ["open_port", "sim_url", "gcode_link", "GrblLink", "MarlinLink", "LinkState",
+__all__ = ["open_port", "sim_url", "gcode_link", "open_link", "GcodeMachineLink", "gcode_machine_link", "GrblLink", "MarlinLink", "LinkState",
            "FirmwareInfo", "Status", "Where", "strip_comment", "parse_status"]
 
 
@@ -30,3 +31,25 @@ def gcode_link(port, machine, **options):
         return MarlinLink(port, **options)
     raise BadInput(f"machine {machine.name!r} has controller.dialect {dialect!r}; "
                    "expected 'grbl', 'grblhal' or 'marlin' for a G-code link")
+
+
+def open_link(url, machine, **options):
+    """Open ``url`` and return the step-level link for ``machine`` (see ``stringbot.winding``).
+
+    G-code machines get a :class:`GcodeMachineLink`; a ``kind = "dynamixel"``
+    machine gets the servo link of ``stringbot.links.dynamixel`` when present.
+    """
+    kind = machine["controller.kind"]
+    if kind == "dynamixel":
+        try:
+            from . import dynamixel
+        except ImportError:
+            raise BadInput(f"machine {machine.name!r} is a Dynamixel machine; this build has no "
+                           "Dynamixel link yet") from None
+        return dynamixel.open_dynamixel_link(url, machine, **options)
+    port = open_port(url, baudrate=machine["controller.baud"])
+    try:
+        return gcode_machine_link(port, machine, **options)
+    except BaseException:
+        port.close()
+        raise

@@ -17,7 +17,7 @@ import serial
 
 from ..errors import MachineFailure
 
-__all__ = ["LinkState", "FirmwareInfo", "Status", "Where", "LineLink", "strip_comment"]
+__all__ = ["LinkState", "FirmwareInfo", "Status", "Where", "LineLink", "strip_comment", "where_of"]
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +69,13 @@ class Where:
     pin: int | None = None
     sync: bool = False         # this line's answer means the step was executed
     item: object = None        # the step object itself, handed back on execution
+
+
+def where_of(step, sync=False):
+    """The :class:`Where` of a motion step: steps are numbered from 1 for people."""
+    index = getattr(step, "index", None)
+    return Where(step=None if index is None else index + 1, pin=getattr(step, "pin", None),
+                 sync=sync, item=step if sync else None)
 
 
 _COMMENT = re.compile(r"\s*(;.*|\([^)]*\))")

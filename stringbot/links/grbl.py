@@ -18,7 +18,7 @@ import re
 import time
 from collections import deque
 
-from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment
+from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment, where_of
 from .codes import grbl_alarm, grbl_error
 
 __all__ = ["GrblLink", "parse_status"]
@@ -206,14 +206,14 @@ class GrblLink(LineLink):
             while len(pending) > self.lookahead:
                 self._wait_answers(len(self._inflight) - 1, self.motion_timeout)
                 self._deliver(pending, on_executed)
-            where = Where(step=getattr(step, "index", None), pin=getattr(step, "pin", None))
+            where = where_of(step)
             if not pending:
                 self.where = where
             for text in lines_for(step):
                 text = strip_comment(text)
                 if text:
                     self._send(text, where)
-            self._send(self.sync_line, Where(where.step, where.pin, True, step))
+            self._send(self.sync_line, where_of(step, sync=True))
             pending.append(step)
             self._poll()
             self._deliver(pending, on_executed)
@@ -227,8 +227,7 @@ class GrblLink(LineLink):
             if pending and pending[0] is step:
                 pending.popleft()
             if pending:
-                nxt = pending[0]
-                self.where = Where(getattr(nxt, "index", None), getattr(nxt, "pin", None))
+                self.where = where_of(pending[0])
             if on_executed is not None:
                 on_executed(step)
 
@@ -300,10 +299,10 @@ class GrblLink(LineLink):
             else:
                 idle_polls = 0
 
-    def _answered(self):
+    def _answered(self, ok=True):
         nbytes, where = self._inflight.popleft()
         self._inflight_bytes -= nbytes
-        if where.sync and where.item is not None:
+        if ok and where.sync and where.item is not None:
             self.executed.append(where.item)
         return where
 
@@ -317,7 +316,8 @@ class GrblLink(LineLink):
         elif line.startswith("error"):
             code = _code(line)
             where = self._inflight[0][1] if self._inflight else self.where
-            self._answered()
+            if self._inflight:
+                self._answered(ok=False)      # a refused sync proves nothing was executed
             self.stop_quietly()
             raise self.fail(f"the machine refused a line: {grbl_error(code) if code is not None else line}",
                             where)

@@ -13,7 +13,7 @@ import logging
 import re
 import time
 
-from .base import FirmwareInfo, LineLink, LinkState, Where, strip_comment
+from .base import FirmwareInfo, LineLink, LinkState, Where, strip_comment, where_of
 from .codes import marlin_checksum
 
 __all__ = ["MarlinLink", "numbered"]
@@ -127,7 +127,7 @@ class MarlinLink(LineLink):
         """Send each step's lines then ``M400``; the step is executed when ``M400`` is answered."""
         self.state = LinkState.STREAMING
         for step in steps:
-            where = Where(step=getattr(step, "index", None), pin=getattr(step, "pin", None))
+            where = where_of(step)
             self.where = where
             for text in lines_for(step):
                 text = strip_comment(text)

@@ -1,0 +1,162 @@
+"""A G-code link seen as a winding machine: steps in, executed steps out.
+
+:class:`GcodeMachineLink` joins a protocol link (:class:`GrblLink` or
+:class:`MarlinLink`: lines <-> bytes) and the motion layer's dialect (steps ->
+lines) into the step-level interface the wind loop drives (documented in
+:mod:`stringbot.winding`); a servo link implements the same interface directly.
+"""
+
+import logging
+import re
+
+from ..motion import dialect_for
+from .base import LinkState, Status
+from .grbl import GrblLink
+from .marlin import MarlinLink
+
+__all__ = ["GcodeMachineLink", "gcode_machine_link"]
+
+log = logging.getLogger(__name__)
+
+_G54 = re.compile(r"^\[G54:([-\d.,]+)\]")
+
+
+class GcodeMachineLink:
+    """Step-level interface over a G-code protocol link.
+
+    Parameters
+    ----------
+    proto : GrblLink or MarlinLink
+    machine : firmware_protocol.machine.Machine
+    """
+
+    def __init__(self, proto, machine):
+        self.proto = proto
+        self.machine = machine
+        self.dialect = dialect_for(machine)
+        self.axes = _axis_order(machine)
+
+    # the interface of stringbot.winding ------------------------------------------------
+    @property
+    def state(self):
+        return self.proto.state
+
+    @property
+    def info(self):
+        return self.proto.info
+
+    def identify(self):
+        return self.proto.identify()
+
+    def prepare(self, *, home):
+        """Alarms, homing where the machine file says so, modal state."""
+        home_lines = self.dialect.home() if home else []
+        self.proto.prepare(home=bool(home_lines), preamble=self.dialect.preamble(),
+                           home_lines=home_lines)
+
+    def execute(self, steps, on_executed=None):
+        self.proto.execute(steps, self.dialect.step_lines, on_executed)
+
+    def execute_lines(self, step, lines, on_executed=None):
+        """Execute ``lines`` (the rest of ``step`` after an interruption) as that step."""
+        self.proto.execute([step], lambda _s: lines, on_executed)
+
+    def finish(self):
+        self.proto.finish(self.dialect.end())
+
+    def hold(self):
+        return self.proto.hold()
+
+    def take_executed(self):
+        return self.proto.take_executed()
+
+    def status(self):
+        return self.proto.status()
+
+    def position(self):
+        """``(ring_deg, head_mm)`` in the job's coordinates as the firmware believes, or None."""
+        st = self.proto.status()
+        if isinstance(self.proto, GrblLink):
+            offset = self._work_offset()
+            pos = st.mpos
+            if pos is None:
+                return None
+            if offset is not None:
+                pos = tuple(p - o for p, o in zip(pos, offset))
+        else:
+            pos = st.mpos
+            if pos is None:
+                return None
+        return self._pick(pos)
+
+    def _work_offset(self):
+        """G54's offset from ``$#`` (the motion layer declares positions with ``G10 L20 P1``)."""
+        proto = self.proto
+        proto.write(b"$#\n")
+        offset = None
+        while True:
+            line = proto.readline(proto.response_timeout)
+            if line is None:
+                return offset
+            m = _G54.match(line)
+            if m:
+                offset = tuple(float(v) for v in m.group(1).split(","))
+            elif line.startswith("ok") or line.startswith("error"):
+                return offset
+
+    def _pick(self, pos):
+        names = self.axes
+        values = dict(zip(names, pos))
+        ring = values.get(self.machine["controller.ring_axis"])
+        head = values.get(self.machine["controller.head_axis"])
+        if ring is None or head is None:
+            return None
+        return ring, head
+
+    def set_position(self, ring_deg, head_mm):
+        """Declare where the machine is (after homing or an operator's check)."""
+        self.proto.command(self.dialect.set_position(ring_deg, head_mm))
+
+    def home(self):
+        for line in self.dialect.home():
+            self.proto.command(line, timeout=getattr(self.proto, "motion_timeout", 600.0))
+
+    def unlock(self):
+        if isinstance(self.proto, GrblLink):
+            self.proto.command("$X")
+
+    def flush(self):
+        """Drop queued lines (GRBL: soft reset once stopped)."""
+        if isinstance(self.proto, GrblLink):
+            self.proto.flush()
+
+    def close(self):
+        self.proto.close()
+
+    @property
+    def lines_sent(self):
+        return self.proto.lines_sent
+
+
+def _axis_order(machine):
+    dialect = machine["controller.dialect"]
+    if dialect == "grbl":
+        return "XYZ"
+    if dialect == "grblhal":
+        return "XYZA" if "A" in (machine["controller.ring_axis"], machine["controller.head_axis"]) \
+            else "XYZ"
+    return "XYZA"
+
+
+def gcode_machine_link(port, machine, **options):
+    """The step-level link for a G-code ``machine`` over an open ``port``."""
+    dialect = machine["controller.dialect"]
+    if dialect in ("grbl", "grblhal"):
+        proto = GrblLink(port, dialect, **options)
+    else:
+        proto = MarlinLink(port, **options)
+    return GcodeMachineLink(proto, machine)
+
+
+# re-exported for type checks in winding
+__all__ += ["LinkState", "Status"]

@@ -1,0 +1,178 @@
+"""The winding journal: append-only JSON lines, each fsync'd, a torn last line tolerated.
+
+One record per line.  The first is the header::
+
+    {"kind": "start", "format": "stringbot-journal", "version": 1, "plan": "...",
+     "plan_sha256": "...", "machine": "grbl-ring", "steps": 2001, "t": 1763790000.0}
+
+then, as the winding goes::
+
+    {"kind": "done", "step": 17, "pin": 42, "t": ...}     step 17 EXECUTED (its sync answered)
+    {"kind": "stop", "reason": "interrupted" | "failed", "error": "...", "step": 18,
+     "pin": 7, "head": "in" | "out" | "unknown", "position": [ring_deg, head_mm] | null, "t": ...}
+    {"kind": "resume", "from_step": 18, "t": ...}          a --resume (or --from-step) began here
+    {"kind": "finished", "t": ...}
+
+A step is recorded only once the machine has executed it.  A record is written
+with one ``write`` and ``fsync``; a crash can leave only the last line torn
+(no newline, or not JSON), and reading ignores such a line.  A damaged line
+anywhere else means the file is not a journal this code wrote: refused.
+"""
+
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import BadInput
+
+__all__ = ["Journal", "JournalState", "read_journal", "journal_path_for"]
+
+FORMAT = "stringbot-journal"
+VERSION = 1
+
+
+def journal_path_for(plan_path, *, dry_run=False):
+    """Default journal path: beside the plan (``plan.json.journal``; dry runs apart)."""
+    plan_path = Path(plan_path)
+    suffix = ".dry-run.journal" if dry_run else ".journal"
+    return plan_path.with_name(plan_path.name + suffix)
+
+
+@dataclass
+class JournalState:
+    """What a journal says."""
+
+    path: Path
+    header: dict
+    done: list = field(default_factory=list)         # executed step indices, in order
+    stops: list = field(default_factory=list)        # the stop records
+    resumes: list = field(default_factory=list)
+    finished: bool = False
+    last_time: float | None = None
+    torn: bool = False                                # a torn last line was ignored
+
+    @property
+    def steps_total(self):
+        return self.header.get("steps")
+
+    next_step: int = 0                                # the first step not yet executed
+
+    @property
+    def last_stop(self):
+        return self.stops[-1] if self.stops else None
+
+
+def read_journal(path):
+    """Read a journal; raises :class:`BadInput` when it is missing or not a journal."""
+    path = Path(path)
+    if not path.exists():
+        raise BadInput(f"journal {str(path)!r} does not exist; nothing to resume "
+                       "(wind without --resume to start, or give --journal)")
+    if path.is_dir():
+        raise BadInput(f"journal path {str(path)!r} is a folder; expected a journal file")
+    data = path.read_bytes()
+    lines = data.split(b"\n")
+    complete, tail = lines[:-1], lines[-1]
+    records = []
+    torn = bool(tail.strip())
+    for n, raw in enumerate(complete, 1):
+        try:
+            rec = json.loads(raw)
+            if not isinstance(rec, dict) or "kind" not in rec:
+                raise ValueError
+        except ValueError:
+            if n == len(complete) and not tail.strip():
+                torn = True           # a torn last line that happens to end in a newline
+                break
+            raise BadInput(f"journal {str(path)!r} line {n} is damaged; expected one JSON record "
+                           "per line (is this a stringbot journal?)") from None
+        records.append(rec)
+    if not records or records[0].get("kind") != "start" or records[0].get("format") != FORMAT:
+        raise BadInput(f"journal {str(path)!r} does not start with a stringbot journal header")
+    if records[0].get("version") != VERSION:
+        raise BadInput(f"journal {str(path)!r} is version {records[0].get('version')!r}; "
+                       f"expected {VERSION}")
+    state = JournalState(path=path, header=records[0], torn=torn)
+    for rec in records[1:]:
+        kind = rec.get("kind")
+        if kind == "done":
+            state.done.append(int(rec["step"]))
+            state.next_step = int(rec["step"]) + 1
+        elif kind == "stop":
+            state.stops.append(rec)
+        elif kind == "resume":
+            state.resumes.append(rec)
+            # --from-step moves the next step: steps from there on are to be wound again
+            start = int(rec.get("from_step", state.next_step))
+            state.done = [s for s in state.done if s < start]
+            state.next_step = start
+        elif kind == "finished":
+            state.finished = True
+        state.last_time = rec.get("t", state.last_time)
+    return state
+
+
+class Journal:
+    """An open journal, appended to as the winding goes.
+
+    Use :meth:`create` for a new winding, :meth:`reopen` to append after a resume.
+    """
+
+    def __init__(self, path, fd):
+        self.path = Path(path)
+        self._fd = fd
+
+    @classmethod
+    def create(cls, path, *, plan_path, plan_sha256, machine, steps):
+        path = Path(path)
+        if path.is_dir():
+            raise BadInput(f"journal path {str(path)!r} is a folder; expected a file path")
+        if not path.parent.is_dir():
+            raise BadInput(f"journal folder {str(path.parent)!r} does not exist; create it first")
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        j = cls(path, fd)
+        j.append({"kind": "start", "format": FORMAT, "version": VERSION, "plan": str(plan_path),
+                  "plan_sha256": plan_sha256, "machine": machine, "steps": steps})
+        _fsync_dir(path.parent)
+        return j
+
+    @classmethod
+    def reopen(cls, path):
+        path = Path(path)
+        data = path.read_bytes()
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+        j = cls(path, fd)
+        if data and not data.endswith(b"\n"):
+            os.write(fd, b"\n")       # close a torn last line so that the next record stands alone
+        return j
+
+    def append(self, record):
+        """Write one record and fsync it before returning."""
+        record = dict(record)
+        record.setdefault("t", round(time.time(), 3))
+        line = json.dumps(record, separators=(",", ":")) + "\n"
+        if self._fd is None:
+            raise RuntimeError("journal is closed")
+        os.write(self._fd, line.encode("utf-8"))
+        os.fsync(self._fd)
+
+    def done(self, step, pin):
+        self.append({"kind": "done", "step": int(step), "pin": int(pin)})
+
+    def close(self):
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def _fsync_dir(folder):
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError:
+        pass

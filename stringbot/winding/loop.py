@@ -1,0 +1,232 @@
+"""The wind loop: identify, prepare, tie on, wind step by step with a journal, end cleanly.
+
+:class:`Winder` drives any link with the interface of :mod:`stringbot.winding`.
+It owns the :class:`WindState`; the link owns its own state.  Ctrl-C arrives as
+``KeyboardInterrupt`` in the main thread: the winder asks the link for a feed
+hold, waits until the machine has stopped, journals what was executed and
+raises :class:`~stringbot.errors.Interrupted`.
+"""
+
+import enum
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+from ..errors import Interrupted, MachineFailure
+from ..motion import move_seconds
+
+__all__ = ["WindState", "Progress", "WindResult", "Winder", "step_seconds"]
+
+log = logging.getLogger(__name__)
+
+
+class WindState(enum.Enum):
+    CONNECTING = "connecting"
+    PREPARING = "preparing"
+    WAITING = "waiting for the operator"
+    WINDING = "winding"
+    FINISHING = "finishing"
+    DONE = "done"
+    INTERRUPTED = "interrupted"
+    FAILED = "failed"
+
+
+@dataclass
+class Progress:
+    """What the progress callback gets after every executed step."""
+
+    done: int                 # steps executed (of the whole plan)
+    total: int
+    step: int | None          # the step just executed, numbered from 1
+    pin: int | None
+    elapsed_s: float          # wall time of this run
+    eta_s: float | None       # wall time still needed (machine-time model x measured rate)
+
+
+@dataclass
+class WindResult:
+    """The summary of a winding run."""
+
+    steps_done: int
+    total: int
+    first_step: int           # numbered from 1: where this run started
+    wall_s: float
+    machine_s: float          # the model's machine time of the steps this run wound
+    firmware: str
+    lines_sent: int
+    journal: str | None
+
+    @property
+    def pins_per_second(self):
+        wound = self.steps_done - (self.first_step - 1)
+        return wound / self.wall_s if self.wall_s > 0 else math.inf
+
+
+def step_seconds(steps, machine, start=(0.0, None)):
+    """Machine seconds of each step by the motion layer's trapezoid model."""
+    ring_feed, ring_acc = machine["ring.feed_deg_per_min"], machine["ring.accel_deg_per_s2"]
+    head_feed, head_acc = machine["head.feed_mm_per_min"], machine["head.accel_mm_per_s2"]
+    ring, head = start[0], start[1] if start[1] is not None else machine["head.in_mm"]
+    out = []
+    for step in steps:
+        t = step.dwell_s
+        for mv in step.moves:
+            dr, dh = abs(mv.ring_deg - ring), abs(mv.head_mm - head)
+            if dr > 1e-9:
+                t += move_seconds(dr, mv.feed or ring_feed, ring_acc)
+            if dh > 1e-9:
+                t += move_seconds(dh, mv.feed or head_feed, head_acc)
+            ring, head = mv.ring_deg, mv.head_mm
+        out.append(t)
+    return out
+
+
+class Winder:
+    """One winding run over an open link.
+
+    Parameters
+    ----------
+    link : the step-level link (see :mod:`stringbot.winding`)
+    steps : list of HookStep, the whole plan's
+    machine : Machine
+    journal : Journal or None
+    progress : callable(Progress) or None
+    confirm : callable(str) -> bool, or None to skip questions
+    """
+
+    def __init__(self, link, steps, machine, *, journal=None, progress=None, confirm=None):
+        self.link = link
+        self.steps = steps
+        self.machine = machine
+        self.journal = journal
+        self.progress = progress
+        self.confirm = confirm
+        self.state = WindState.CONNECTING
+        self.done = 0                       # steps executed (0..len(steps))
+        self.est = step_seconds(steps, machine)
+        self._t0 = None
+        self._first = 0
+        self._est_done = 0.0
+
+    # ---- the run ---------------------------------------------------------------------
+    def start(self, *, home):
+        """Identify the firmware, check alarms, home if asked, set modal state."""
+        self.state = WindState.CONNECTING
+        info = self.link.identify()
+        self.state = WindState.PREPARING
+        self.link.prepare(home=home)
+        return info
+
+    def ask(self, message):
+        """Ask the operator (True to go on); declining stops cleanly with nothing moved."""
+        if self.confirm is None:
+            return
+        self.state = WindState.WAITING
+        if not self.confirm(message):
+            self.state = WindState.INTERRUPTED
+            raise Interrupted("stopped by the operator before winding; nothing was moved")
+
+    def wind(self, first=0, *, first_lines=None, finish=True):
+        """Wind steps ``first``.. to the end; ``first_lines`` replaces step ``first``'s lines."""
+        self.state = WindState.WINDING
+        self._first = first
+        self.done = first
+        self._t0 = time.monotonic()
+        self._est_done = 0.0
+        try:
+            if first_lines is not None and first < len(self.steps):
+                self.link.execute_lines(self.steps[first], first_lines, self._executed)
+                first += 1
+            self.link.execute(self.steps[first:], self._executed)
+            if finish:
+                self.state = WindState.FINISHING
+                self.link.finish()
+        except KeyboardInterrupt:
+            self._interrupted()
+        except MachineFailure as exc:
+            self._failed(exc)
+            raise
+        self.state = WindState.DONE
+        if self.journal is not None:
+            self.journal.append({"kind": "finished"})
+        return WindResult(steps_done=self.done, total=len(self.steps), first_step=self._first + 1,
+                          wall_s=time.monotonic() - self._t0,
+                          machine_s=sum(self.est[self._first:self.done]),
+                          firmware=_firmware_name(self.link), lines_sent=self.link.lines_sent,
+                          journal=str(self.journal.path) if self.journal else None)
+
+    # ---- bookkeeping -------------------------------------------------------------------
+    def _executed(self, step):
+        if self.journal is not None:
+            self.journal.done(step.index, step.pin)
+        self.done = step.index + 1
+        self._est_done += self.est[step.index]
+        if self.progress is not None:
+            self.progress(self._progress(step))
+
+    def _progress(self, step):
+        elapsed = time.monotonic() - self._t0
+        remaining = sum(self.est[self.done:]) if self.done < len(self.est) else 0.0
+        wound = self.done - self._first
+        if wound >= 3 and self._est_done > 0:
+            rate = elapsed / self._est_done            # wall seconds per model second
+            eta = remaining * rate
+        else:
+            eta = remaining
+        return Progress(done=self.done, total=len(self.steps), step=step.index + 1, pin=step.pin,
+                        elapsed_s=elapsed, eta_s=eta)
+
+    def _catch_up(self):
+        """Journal the steps the link confirmed while stopping."""
+        try:
+            for step in self.link.take_executed():
+                self._executed(step)
+        except Exception:  # the journal write failing here must not hide the stop
+            log.exception("could not journal the last executed steps")
+
+    def _current(self):
+        if self.done < len(self.steps):
+            st = self.steps[self.done]
+            return st.index + 1, st.pin
+        return None, None
+
+    def _interrupted(self):
+        self.state = WindState.INTERRUPTED
+        status = None
+        try:
+            status = self.link.hold()
+        except KeyboardInterrupt:
+            log.warning("second Ctrl-C: not waiting for the machine to stop")
+        except MachineFailure as exc:
+            log.warning("feed hold failed: %s", exc)
+        self._catch_up()
+        step, pin = self._current()
+        self._stop_record("interrupted", "interrupted by the operator (Ctrl-C)", status)
+        where = f"pin {pin}, step {step} of {len(self.steps)}" if step else "the end"
+        raise Interrupted(f"interrupted at {where}: the machine is stopped (feed hold); "
+                          f"{self.done} of {len(self.steps)} steps done") from None
+
+    def _failed(self, exc):
+        self.state = WindState.FAILED
+        self._catch_up()
+        self._stop_record("failed", str(exc), None)
+
+    def _stop_record(self, reason, message, status):
+        if self.journal is None:
+            return
+        step, pin = self._current()
+        pos = getattr(status, "mpos", None) if status is not None else None
+        try:
+            self.journal.append({"kind": "stop", "reason": reason, "error": message,
+                                 "step": step, "pin": pin, "next_step": self.done,
+                                 "position": list(pos) if pos else None})
+        except OSError:
+            log.exception("could not write the journal's stop record")
+
+
+def _firmware_name(link):
+    info = getattr(link, "info", None)
+    if info is None:
+        return "?"
+    return f"{info.name} {info.version}".strip()

@@ -1,0 +1,108 @@
+"""One ``stringbot wind`` run: files in, link opened, winder run, everything closed.
+
+The command line calls :func:`wind_plan` with what the user typed, a
+``confirm(question) -> bool`` for the operator (None with ``--yes``) and a
+``progress(Progress)`` callback; nothing here prints.
+"""
+
+import logging
+from pathlib import Path
+
+from firmware_protocol.machine import load_machine
+
+from ..errors import BadInput
+from ..links import open_link, sim_url
+from ..motion import hook_steps
+from ..planner import read_plan
+from .journal import Journal, journal_path_for, read_journal
+from .loop import Winder
+
+__all__ = ["wind_plan", "Job", "load_job"]
+
+log = logging.getLogger(__name__)
+
+
+class Job:
+    """The plan, the machine and the steps of a winding, and where its journal lives."""
+
+    def __init__(self, plan_path, machine, *, port=None, record=None, journal=None, realtime=False,
+                 faults=None):
+        self.plan_path = Path(plan_path)
+        self.plan = read_plan(plan_path)
+        self.machine = machine
+        self.steps = hook_steps(self.plan, machine)
+        self.dry_run = port is None
+        if port is not None and (record or faults or realtime):
+            if not str(port).startswith("sim://"):
+                raise BadInput("--record, --faults and --realtime are for the simulated machine; "
+                               "leave out --port (or give a sim:// URL) to use them")
+        self.url = port if port is not None else sim_url(machine.name, record=record, faults=faults,
+                                                          realtime=realtime)
+        self.journal_path = Path(journal) if journal else journal_path_for(plan_path,
+                                                                           dry_run=self.dry_run)
+
+    @property
+    def fresh_world(self):
+        """A ``sim://`` port starts a new simulated machine: nothing from before is on it."""
+        return str(self.url).startswith("sim://")
+
+    def header_check(self, state):
+        """Refuse a journal written for another plan or machine."""
+        h = state.header
+        if h.get("plan_sha256") != self.plan.sha256():
+            raise BadInput(f"journal {str(state.path)!r} is for another plan (plan {h.get('plan')!r}, "
+                           f"sha256 {str(h.get('plan_sha256'))[:12]}...); expected this plan's "
+                           f"{self.plan.sha256()[:12]}...; give --journal for this plan's journal")
+        if h.get("machine") != self.machine.name:
+            raise BadInput(f"journal {str(state.path)!r} is for machine {h.get('machine')!r}, not "
+                           f"{self.machine.name!r}; resume on the machine it was started on")
+        if h.get("steps") != len(self.steps):
+            raise BadInput(f"journal {str(state.path)!r} has {h.get('steps')} steps but the plan "
+                           f"has {len(self.steps)}; is it this plan's journal?")
+
+
+def load_job(plan_path, machine_name, **kw):
+    return Job(plan_path, load_machine(machine_name), **kw)
+
+
+def _new_journal(job):
+    path = job.journal_path
+    if path.exists() and not job.fresh_world:
+        try:
+            state = read_journal(path)
+        except BadInput:
+            state = None
+        if state is not None and state.done and not state.finished:
+            raise BadInput(f"journal {str(path)!r} shows {len(state.done)} of {state.steps_total} "
+                           "steps done: add --resume to continue that winding, or --from-step N "
+                           "to restart from step N")
+    return Journal.create(path, plan_path=job.plan_path, plan_sha256=job.plan.sha256(),
+                          machine=job.machine.name, steps=len(job.steps))
+
+
+def wind_plan(job, *, confirm=None, progress=None, link_options=None):
+    """Wind ``job`` from its first step.
+
+    Returns
+    -------
+    WindResult
+
+    Raises
+    ------
+    BadInput, MachineFailure, Interrupted
+    """
+    journal = _new_journal(job)
+    link = None
+    try:
+        link = open_link(job.url, job.machine, **(link_options or {}))
+        winder = Winder(link, job.steps, job.machine, journal=journal, progress=progress,
+                        confirm=confirm)
+        winder.start(home=job.machine["controller.homing"])
+        first = job.steps[0]
+        winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
+                   "then go on?")
+        return winder.wind(0)
+    finally:
+        if link is not None:
+            link.close()
+        journal.close()
