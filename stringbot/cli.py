@@ -162,3 +162,90 @@ def estimate_cmd(plan, machine, as_json):
             click.echo(line)
 
 # == winding commands (wind, simulate) ==
+
+
+def _resume_command(plan, machine_name, port, journal):
+    import shlex
+    parts = ["stringbot", "wind", plan, "--machine", machine_name]
+    if port:
+        parts += ["--port", port]
+    if journal:
+        parts += ["--journal", journal]
+    return " ".join(shlex.quote(p) for p in parts + ["--resume"])
+
+
+@cli.command()
+@click.argument("plan", type=click.Path(dir_okay=True))
+@click.option("--machine", "machine_name", required=True, help="Machine name (bundled) or machine file path.")
+@click.option("--port", default=None, help="Serial port or URL (/dev/ttyUSB0, COM3, socket://h:p, sim://...); "
+              "default: the simulated machine.")
+@click.option("--record", default=None, type=click.Path(dir_okay=False),
+              help="Dry run: write the simulated world's record (wraps, collisions) to this file.")
+@click.option("--journal", default=None, type=click.Path(dir_okay=False),
+              help="Journal file (default: beside the plan, PLAN.journal; dry runs PLAN.dry-run.journal).")
+@click.option("--yes", "-y", is_flag=True, help="Do not ask the operator anything.")
+@click.option("--resume", is_flag=True, help="Continue an interrupted winding from its journal.")
+@click.option("--from-step", type=click.IntRange(min=1), default=None,
+              help="Restart from step N (numbered from 1) after fixing something by hand.")
+@click.option("--head-side", type=click.Choice(["in", "out"]), default=None,
+              help="On resume, where the thread head is when the journal cannot know.")
+@click.option("--status", "show_status", is_flag=True, help="Show the journal's state and exit.")
+@click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
+@click.option("--realtime", is_flag=True, help="Dry run: the simulated machine moves at real speed.")
+def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
+         faults, realtime):
+    """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
+    from .winding import load_job, wind_plan
+    from .winding import resume as resuming
+
+    job = load_job(plan, machine_name, port=port, record=record, journal=journal,
+                   realtime=realtime, faults=faults)
+    if show_status:
+        for line in resuming.status_lines(job):
+            click.echo(line)
+        return
+    again = _resume_command(plan, machine_name, port, journal)
+
+    def confirm(question):
+        return click.confirm(question, default=True, err=True)
+
+    bar = None
+    state = {"last": 0}
+
+    def progress(p):
+        nonlocal bar
+        if bar is None:
+            bar = click.progressbar(length=p.total, label="winding", show_eta=False, show_pos=True,
+                                    item_show_func=lambda _x: state.get("text"), file=sys.stderr)
+            bar.__enter__()
+            bar.update(p.done - 1)
+            state["last"] = p.done - 1
+        eta = _fmt_s(p.eta_s) if p.eta_s is not None else "?"
+        state["text"] = f"pin {p.pin}  ETA {eta}"
+        bar.update(p.done - state["last"])
+        state["last"] = p.done
+
+    try:
+        if resume or from_step is not None:
+            result = resuming.resume_plan(job, from_step=from_step, head_side=head_side,
+                                          confirm=None if yes else confirm, progress=progress)
+        else:
+            result = wind_plan(job, confirm=None if yes else confirm, progress=progress)
+    except (Interrupted, MachineFailure) as exc:
+        if bar is not None:
+            bar.__exit__(None, None, None)
+        raise type(exc)(f"{exc}; resume with: {again}") from None
+    if bar is not None:
+        bar.__exit__(None, None, None)
+    wound = result.steps_done - (result.first_step - 1)
+    click.echo(f"wound {wound} pins (steps {result.first_step}-{result.steps_done} of {result.total}) "
+               f"in {_fmt_s(result.wall_s)} ({result.pins_per_second:.1f} pins/s); "
+               f"model machine time {_fmt_s(result.machine_s)}; firmware {result.firmware}; "
+               f"{result.lines_sent} lines sent; journal {result.journal}")
+
+
+def _fmt_s(seconds):
+    seconds = int(round(seconds))
+    h, rest = divmod(seconds, 3600)
+    m, s = divmod(rest, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
