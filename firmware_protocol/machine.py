@@ -324,6 +324,12 @@ def _check_consistency(m, source):
     if v["head.in_mm"] == v["head.out_mm"]:
         raise MachineFileError(f"{source}: head.in_mm equals head.out_mm ({v['head.in_mm']}); "
                                "expected two different positions (IN inside the pin circle, OUT outside)")
+    home_head = v["controller.home_head_mm"]
+    if home_head is not None and (home_head - m.circle_mm) * (v["head.in_mm"] - m.circle_mm) <= 0:
+        raise MachineFileError(
+            f"{source}: controller.home_head_mm is {home_head}, outside the pin circle (the head crosses it "
+            f"at {m.circle_mm:g} mm); expected a position on the IN side, like head.in_mm = {v['head.in_mm']:g}, "
+            "so that the head never sits among the pins while the ring turns")
     if m.free_gap_mm <= 0:
         raise MachineFileError(
             f"{source}: the pins do not fit: pitch {m.pitch_mm:.3f} mm <= pin {v['ring.pin_diameter_mm']} mm "

@@ -2,8 +2,8 @@
 
 It understands what :mod:`stringbot.motion.gcode` writes: ``G0``/``G1`` with
 axis words and ``F``, ``G4`` (ignored: no motion), ``G10 L20 P1`` and ``G92``
-(declare the current position), ``$H`` and ``G28`` (homing: the world starts
-at the home position, so it does not move), ``G21``/``G90``/``G94``,
+(declare the current position), ``$H`` and ``G28`` (homing as the emulators do
+it: head to ``home_head_mm``, ring to ``home_ring_deg`` on the nearest turn), ``G21``/``G90``/``G94``,
 ``M2``/``M400``/``M117`` and ``;`` comments.  Anything else fails the test.
 """
 
@@ -19,13 +19,24 @@ def replay(text, machine, *, world=None):
     w = world or World(machine)
     ring_axis, head_axis = machine["controller.ring_axis"], machine["controller.head_axis"]
     phys = {ring_axis: w.ring_deg, head_axis: w.head_mm}
-    offset = {ring_axis: 0.0, head_axis: 0.0}          # work = physical + offset
+    offset = {ring_axis: 0.0, head_axis: 0.0}          # work = physical + offset (turns, after homing)
     lo = hi = w.ring_deg
     for n, raw in enumerate(text.splitlines(), 1):
         line = raw.split(";", 1)[0].strip()
         if not line:
             continue
         if line == "$H" or line.startswith("G28"):
+            # like the emulators: the head to its switch, then the ring to its switch (the nearest
+            # turn), and the firmware's position := the physical one
+            home_ring = machine["controller.home_ring_deg"]
+            home_head = machine["controller.home_head_mm"]
+            home_head = machine["head.in_mm"] if home_head is None else home_head
+            ring_at = home_ring + round((phys[ring_axis] - home_ring) / 360.0) * 360.0
+            w.move(phys[ring_axis], home_head)
+            w.move(ring_at, home_head)
+            phys = {ring_axis: ring_at, head_axis: home_head}
+            offset = {ring_axis: 0.0, head_axis: 0.0}
+            lo, hi = min(lo, ring_at), max(hi, ring_at)
             continue
         if line.startswith("M117"):
             continue

@@ -137,3 +137,34 @@ def test_resuming_mid_plan_keeps_the_plans_wrap_directions(start):
             world.move(mv.ring_deg, mv.head_mm)
     assert [w.pin for w in world.wraps] == plan.sequence[start:] and world.collisions == []
     assert hook_steps(plan, machine, start_index=300) == []
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_random_machines_and_plans_replay_exactly(seed):
+    """Other pin counts, pin 0 offsets, head orientations, dialects and travel bounds."""
+    rng = random.Random(seed)
+    pins = rng.choice([3, 4, 5, 7, 64, 180, 301, 600])
+    dialect, ring_axis, head_axis = rng.choice([("grbl", "Z", "X"), ("grblhal", "B", "Y"), ("marlin", "C", "Z")])
+    inn = rng.uniform(-50, 50)
+    doc = {
+        "name": f"random-{seed}",
+        "ring": {"pins": pins, "diameter_mm": 600.0, "pin_diameter_mm": 1.0,
+                 "pin0_angle_deg": rng.uniform(-400, 400), "travel_deg": rng.choice([360.0, 500.0, 36000.0])},
+        "head": {"in_mm": inn, "out_mm": inn + rng.choice([-1, 1]) * rng.uniform(3, 20)},
+        "controller": {"kind": "gcode", "dialect": dialect, "ring_axis": ring_axis, "head_axis": head_axis,
+                       "homing": rng.random() < 0.5, "home_ring_deg": rng.uniform(-10, 10)},
+        "thread": {"diameter_mm": 0.3},
+        "winding": {"wrap_direction": rng.choice(["auto", "auto", "cw", "ccw"])},
+    }
+    machine = machine_from_dict(doc, source="random")
+    plan = make_plan(random_sequence(150, pins=pins, seed=seed), pins=pins)
+    world, (lo, hi) = replay(gcode_job(plan, machine), machine)
+    assert world.collisions == []
+    assert [w.pin for w in world.wraps] == plan.sequence
+    travel, pin0 = machine["ring.travel_deg"], machine["ring.pin0_angle_deg"]
+    # within the bound, apart from where the job starts (the world's 0, or the home switch)
+    start = machine["controller.home_ring_deg"] if machine["controller.homing"] else 0.0
+    assert min(pin0 - travel, start, 0.0) - 1e-6 <= lo and hi <= max(pin0 + travel, start, 0.0) + 1e-6
+    steps = hook_steps(plan, machine, start_ring_deg=start)
+    inside = [mv.ring_deg for s in steps for mv in s.moves][1:]
+    assert pin0 - travel - 1e-6 <= min(inside) and max(inside) <= pin0 + travel + 1e-6

@@ -68,6 +68,14 @@ def test_ring_travel_and_steps_bounds():
         assert words in str(info.value)
 
 
+def test_head_home_switch_must_be_inside_the_pin_circle():
+    text = BASE.replace('head_axis = "Y"', 'head_axis = "Y"\nhoming = true\nhome_head_mm = 7.0')
+    with pytest.raises(MachineFileError, match=r"controller.home_head_mm is 7.0, outside the pin circle"):
+        machine_from_dict(tomllib.loads(text), source="m")
+    ok = machine_from_dict(tomllib.loads(text.replace("home_head_mm = 7.0", "home_head_mm = -3.0")), source="m")
+    assert ok["controller.home_head_mm"] == -3.0
+
+
 def test_dynamixel_travel_must_fit_the_servos_multi_turn_range():
     doc = tomllib.loads((bundled_dir() / "dynamixel-ring.toml").read_text())
     ratio = doc["controller"]["gear_ratio"]

@@ -49,9 +49,10 @@ class GcodeDialect:
         """Homing and declaring the homed position; empty unless ``controller.homing``."""
         if not self.machine["controller.homing"]:
             return []
-        return [self.home_command(), self.set_position(*self._home_position())]
+        return [self.home_command(), self.set_position(*self.home_position())]
 
-    def _home_position(self):
+    def home_position(self):
+        """(ring deg, head mm) declared at the home switches."""
         m = self.machine
         head = m["controller.home_head_mm"]
         return m["controller.home_ring_deg"], m["head.in_mm"] if head is None else head
@@ -162,7 +163,8 @@ def gcode_job(plan, machine, *, plan_name=None):
         progress comment, and a clean end; newline-terminated.
     """
     dialect = dialect_for(machine)
-    steps = hook_steps(plan, machine)
+    start = dialect.home_position()[0] if machine["controller.homing"] else 0.0
+    steps = hook_steps(plan, machine, start_ring_deg=start)
     est = estimate(plan, machine, steps=steps)
     source = (plan.source or {}).get("path", "")
     lines = [
