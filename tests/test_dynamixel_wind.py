@@ -139,3 +139,33 @@ def test_ctrl_c_holds_and_resume_is_exact(machine):
     assert world.collisions == []
     assert [w.pin for w in world.wraps] == plan.sequence
     assert [w.direction for w in world.wraps] == [s.direction for s in steps]
+
+
+def test_wound_over_sim_url_with_the_worlds_record(machine, tmp_path):
+    import json
+
+    from firmware_protocol.urlhandler.protocol_sim import forget
+    from stringbot.links import open_link
+
+    plan = make_plan(PLANS["seam"])
+    record = tmp_path / "world.json"
+    url = f"sim://?machine=dynamixel-ring&record={record}"
+    link = open_link(url, machine)
+    try:
+        assert link.identify().name == "Dynamixel XM430-W350"
+        steps = hook_steps(plan, machine, start_ring_deg=link.prepare(home=False)[0])
+        link.execute(steps)
+        link.finish()
+    finally:
+        link.close()
+        forget(url)
+    doc = json.loads(record.read_text())
+    assert [w["pin"] for w in doc["wraps"]] == plan.sequence and doc["collisions"] == []
+
+
+def test_bad_fault_in_a_sim_url_is_bad_input(machine):
+    from stringbot.errors import BadInput
+    from stringbot.links import open_link
+
+    with pytest.raises(BadInput, match="expected power_loss@move=N"):
+        open_link("sim://?machine=dynamixel-ring&faults=explode@3", machine)

@@ -261,13 +261,17 @@ class DynamixelLink:
         parts = [f"{s.role} id {s.id}: {s.model_name} fw {s.firmware}" for s in self.servos.values()]
         return f"Dynamixel Protocol 2.0 on {self.url} ({'; '.join(parts)})"
 
-    def prepare(self, *, resume_at=None):
+    def prepare(self, *, home=False, resume_at=None):
         """Torque off, modes, profile, torque on.  Returns the machine's position (ring_deg, head_mm).
 
         Fresh (``resume_at`` None): the ring's turn count is cleared, so the ring
         starts within one servo turn of 0.  Resuming: a ring servo that lost its
         turn count (power loss, reboot) is re-based to the turn nearest ``resume_at``.
+        ``home`` is accepted for the wind loop's sake: the servos' absolute
+        encoders need no homing.
         """
+        if home:
+            log.info("Dynamixel servos have absolute encoders: nothing to home")
         ring, head = self.ids["ring"], self.ids["head"]
         for servo_id in (ring, head):
             bits = self._read(servo_id, "Hardware Error Status")
