@@ -22,33 +22,16 @@ sets belief = physical.
 import enum
 import logging
 
-from ..faults import DISCONNECT_SECONDS, POWER_OFF_SECONDS, FaultPlan
 from ..grbl import UNLOCK_MESSAGE
-from .base import Emulator
+from .gcode_base import EPS, GcodeFirmware, Power, physical_home
 from .grbl_parser import GrblError, GrblParser, fmt, read_words
 from .grbl_system import GRBL, GRBLHAL, default_settings, format_settings, store_setting
-from .motion import MotionQueue
 
-__all__ = ["GrblState", "GrblEmulator", "GrblHalEmulator", "physical_home"]
+__all__ = ["GrblState", "GrblEmulator", "GrblHalEmulator", "physical_home", "Power"]
 
 log = logging.getLogger(__name__)
 
-_EPS = 1e-9
-_ALL_AXES = "XYZABC"
-
-
-def physical_home(machine, ring_now):
-    """Where the home switches are: (ring degrees nearest ``ring_now``, head mm).
-
-    The ring's switch trips once a turn, at ``controller.home_ring_deg`` (0 if
-    the machine file has none); the head's at ``controller.home_head_mm``
-    (default ``head.in_mm``: the head homes to IN).
-    """
-    v = machine.values
-    ring0 = v.get("controller.home_ring_deg") or 0.0
-    head = v.get("controller.home_head_mm")
-    head = v["head.in_mm"] if head is None else head
-    return ring0 + round((ring_now - ring0) / 360.0) * 360.0, head
+_EPS = EPS
 
 
 class GrblState(enum.Enum):
@@ -60,12 +43,6 @@ class GrblState(enum.Enum):
     HOME = "Home"
     CHECK = "Check"
     SLEEP = "Sleep"
-
-
-class Power(enum.Enum):
-    ON = "on"
-    OFF = "off"            # a power loss: the firmware is not running
-    UNPLUGGED = "unplugged"  # the cable is out: the firmware runs, the port is gone
 
 
 def clean_line(raw, limit):
@@ -90,7 +67,7 @@ def clean_line(raw, limit):
     return "".join(out), overflow
 
 
-class GrblEmulator(Emulator):
+class GrblEmulator(GcodeFirmware):
     """GRBL 1.1h on a virtual clock, driving ``world``.
 
     Parameters
@@ -105,33 +82,16 @@ class GrblEmulator(Emulator):
     variant = GRBL
 
     def __init__(self, machine, *, world=None, faults=None):
-        super().__init__()
-        if world is None:
-            from ..world import World
-            world = World(machine)
-        self.machine, self.world = machine, world
-        self.faults = faults if isinstance(faults, FaultPlan) else FaultPlan(faults or ())
-        ring, head = machine["controller.ring_axis"], machine["controller.head_axis"]
-        extra = "".join(a for a in _ALL_AXES if a in (ring, head) and a not in self.variant.base_axes)
-        self.axes = self.variant.base_axes + extra
-        self.ring_i, self.head_i = self.axes.index(ring), self.axes.index(head)
+        self.base_axes = self.variant.base_axes
+        super().__init__(machine, world=world, faults=faults, planner_blocks=self.variant.planner_blocks)
         self.settings = default_settings(self.variant, self.axes, machine)
+        self.apply_settings()
         self.user_string = ""
         self.startup_lines = ["", ""]
         self.parser = GrblParser(self.axes)
-        self.motion = MotionQueue(self.variant.planner_blocks, self._rates(), self._accels(),
-                                  [0.0] * len(self.axes))
-        self.offset = [0.0] * len(self.axes)
         self.state = GrblState.IDLE
-        self.power = Power.ON
-        self._out = bytearray()
-        self._rx = bytearray()
         self._raw = bytearray()
-        self._task = None          # (generator, waiting predicate, silent) of the line being executed
-        self._timer = None         # virtual time a dwell ends
-        self._port_back_at = None
         self._wco_counter = self._ovr_counter = 0
-        self.dropped_bytes = 0
         self._jog_cancelling = False
         self.after_response = None
         self._boot(wipe=True, alarm=False)
@@ -157,59 +117,8 @@ class GrblEmulator(Emulator):
                 self.dropped_bytes += 1
         self._pump()
 
-    def transmit(self):
-        data = bytes(self._out)
-        self._out.clear()
-        return data
-
-    def next_event_in(self):
-        times = [self.motion.time_to_event()]
-        if self._timer is not None:
-            times.append(max(self._timer - self.now, 0.0))
-        if self._port_back_at is not None:
-            times.append(max(self._port_back_at - self.now, 0.0))
-        times = [t for t in times if t is not None]
-        return min(times) if times else None
-
-    @property
-    def busy(self):
-        return bool(self._out) or self.next_event_in() is not None
-
-    def advance(self, dt=None):
-        if dt is None:
-            nxt = self.next_event_in()
-            if nxt is None:
-                return 0.0
-            dt = nxt
-        remaining = dt
-        while True:
-            nxt = self.next_event_in()
-            step = remaining if nxt is None else min(nxt, remaining)
-            self._run(step)
-            remaining -= step
-            if remaining <= _EPS:
-                break
-        return dt
-
-    # ---- time ---------------------------------------------------------------------------------
-    def _run(self, step):
-        before = self.motion.position
-        done = self.motion.run(step) if self.power is not Power.OFF else []
-        self.now += step
-        points = [b.target for b in done] + [self.motion.position]
-        if self.motion.position != before or done:
-            self._move_world(points)
-        if self._port_back_at is not None and self.now >= self._port_back_at - _EPS:
-            self._port_back()
+    def _after_run(self):
         self._update_state()
-        self._pump()
-
-    def _move_world(self, points):
-        for p in points:
-            ring = p[self.ring_i] + self.offset[self.ring_i]
-            head = p[self.head_i] + self.offset[self.head_i]
-            if (ring, head) != (self.world.ring_deg, self.world.head_mm):
-                self.world.move(ring, head)
 
     def _update_state(self):
         if self.state is GrblState.JOG and self._jog_cancelling and not self.motion.moving:
@@ -220,10 +129,6 @@ class GrblEmulator(Emulator):
             self.state = GrblState.IDLE
 
     # ---- output -----------------------------------------------------------------------------------
-    def _emit(self, line):
-        if self.power is Power.ON and self.port_up:
-            self._out += line.encode("latin-1") + b"\r\n"
-
     def _respond(self, code, silent=False):
         if silent:
             log.info("fault: response %r dropped", "ok" if not code else f"error:{code}")
@@ -235,10 +140,7 @@ class GrblEmulator(Emulator):
         """(Re)initialise as GRBL's main loop does after power-up or an abort."""
         self.motion.clear()
         if wipe:
-            physical = self._physical()
-            self.motion.set_position([0.0] * len(self.axes))
-            self.offset = [0.0] * len(self.axes)
-            self.offset[self.ring_i], self.offset[self.head_i] = physical
+            self._wipe_belief()
         self.parser.reset(self.motion.position)
         self._rx.clear()
         self._raw.clear()
@@ -259,9 +161,6 @@ class GrblEmulator(Emulator):
         if self.power is Power.ON and self.port_up:
             self._out += b"\r\n" + self.variant.banner.encode("ascii") + b"\r\n"
 
-    def _physical(self):
-        return [self.world.ring_deg, self.world.head_mm]
-
     def _soft_reset(self):
         moving = self.state in (GrblState.RUN, GrblState.JOG, GrblState.HOME) or (
             self.state is GrblState.HOLD and not self.motion.hold_complete)
@@ -276,47 +175,19 @@ class GrblEmulator(Emulator):
             self._emit("ALARM:3")
         self._boot(wipe=True, alarm=moving)
 
-    def _port_down(self, power, seconds):
-        log.info("fault: port down (%s) for %.2f s", power.value, seconds)
-        self.power = power
-        self.port_up = False
-        self._out.clear()
-        self._rx.clear()
+    def _clear_input(self):
         self._raw.clear()
-        if power is Power.OFF:
-            self.motion.clear()
-            self._task, self._timer = None, None
-        self._port_back_at = self.now + seconds
 
-    def _port_back(self):
-        was_off = self.power is Power.OFF
-        self._port_back_at = None
-        self.power = Power.ON
-        self.port_up = True
-        if was_off:
-            self.state = GrblState.IDLE
-            self._boot(wipe=True, alarm=False)
-        log.info("port back up")
-
-    def reconnect(self):
-        """The host reopened the port: run the clock until the port is back (no-op if up)."""
-        if self._port_back_at is not None:
-            self.advance(max(self._port_back_at - self.now, 0.0))
+    def _power_on(self):
+        self.state = GrblState.IDLE
+        self._boot(wipe=True, alarm=False)
 
     # ---- the main loop --------------------------------------------------------------------------------
     def _pump(self):
         """Run GRBL's main loop until it blocks or runs out of input."""
         while self.power is not Power.OFF:
-            if self._task is not None:
-                gen, pred, silent = self._task
-                if not pred():
-                    return
-                try:
-                    self._task = (gen, gen.send(None), silent)
-                    continue
-                except StopIteration as stop:
-                    self._task = None
-                    self._respond(stop.value, silent)
+            if not self._step_task():
+                return
             if not self._rx:
                 return
             c = self._rx.pop(0)
@@ -328,20 +199,11 @@ class GrblEmulator(Emulator):
                 self._raw.append(c)
 
     def _line(self, raw):
-        kinds = self.faults.next_line()
-        if "power" in kinds:
-            self._port_down(Power.OFF, POWER_OFF_SECONDS)
+        kinds = self._line_faults()
+        if kinds is None:
             return
-        if "disconnect" in kinds:
-            self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
-            return
-        if "reset" in kinds:
-            self._brownout()
-            return
-        if "garble" in kinds and raw:
-            raw = bytearray(raw)
-            raw[len(raw) // 2] = 0x7F
-            log.info("fault: line garbled to %r", bytes(raw))
+        if "garble" in kinds:
+            raw = self.garble(raw)
         silent = "drop-ok" in kinds
         if "error" in kinds:
             log.info("fault: line %r rejected", bytes(raw))
@@ -349,13 +211,7 @@ class GrblEmulator(Emulator):
             return
         text, overflow = clean_line(raw, 80)
         result = self._execute(text, overflow)
-        if hasattr(result, "send"):
-            try:
-                self._task = (result, result.send(None), silent)
-            except StopIteration as stop:
-                self._respond(stop.value, silent)
-        else:
-            self._respond(result, silent)
+        self._start_task(result, silent)
         if self.after_response is not None:
             then, self.after_response = self.after_response, None
             then()
@@ -396,15 +252,12 @@ class GrblEmulator(Emulator):
 
     # ---- line tasks (generators: yield a predicate to wait on, return the response code) --------------
     def _queue_moves(self, targets, *, rapid, feed, inverse, line_number, kind="line"):
-        for target in targets:
-            while self.motion.free <= 0:
-                yield lambda: self.motion.free > 0
-            start = self.motion.blocks[-1].target if self.motion.blocks else tuple(self.motion.position)
-            if self.motion.add(start, target, rapid=rapid, feed=feed, inverse_time=inverse,
-                               line_number=line_number, kind=kind) is not None:
-                if self.state is GrblState.IDLE:
-                    self.state = GrblState.JOG if kind == "jog" else GrblState.RUN
-        return 0
+        return self._queue_task(targets, rapid=rapid, feed=feed, inverse=inverse,
+                                line_number=line_number, kind=kind)
+
+    def _motion_queued(self, kind):
+        if self.state is GrblState.IDLE:
+            self.state = GrblState.JOG if kind == "jog" else GrblState.RUN
 
     def _synced(self):
         return self.motion.empty and self.state not in (GrblState.HOLD,)
@@ -437,25 +290,13 @@ class GrblEmulator(Emulator):
     def _home(self):
         """``$H``: head to its switch, then the ring to its switch (nearest turn), belief = physical."""
         self.state = GrblState.HOME
-        ring_phys, head_phys = self._physical()
-        home_ring, home_head = physical_home(self.machine, ring_phys)
-        pos = list(self.motion.position)
-        step1 = list(pos)
-        step1[self.head_i] = home_head - self.offset[self.head_i]
-        step2 = list(step1)
-        step2[self.ring_i] = home_ring - self.offset[self.ring_i]
-        start = pos
-        for target in (step1, step2):
-            self.motion.add(tuple(start), tuple(target), rapid=True, feed=0.0, kind="home")
+        start = tuple(self.motion.position)
+        for target in self._home_moves():
+            self.motion.add(start, target, rapid=True, feed=0.0, kind="home")
             start = target
         while not self.motion.empty:
             yield lambda: self.motion.empty
-        physical = self._physical()
-        position = list(self.motion.position)
-        position[self.ring_i], position[self.head_i] = physical
-        self.offset = [0.0] * len(self.axes)
-        self.motion.set_position(position)
-        self.parser.position = list(position)
+        self.parser.position = self._belief_is_physical()
         self._wco_counter = 0
         self.state = GrblState.IDLE
         self._run_startup_lines()

@@ -1,0 +1,285 @@
+"""What the simulated G-code firmwares share: clock, world, port faults, the running line.
+
+:class:`GcodeFirmware` owns the virtual clock and its events (motion blocks
+ending, a dwell ending, the port coming back), the coupling of the firmware's
+belief to the physical world (``physical = belief + offset`` on the ring and
+head axes), the port going down on a ``power`` or ``disconnect`` fault, and the
+line being executed as a *task*: a generator that yields a predicate to wait
+on (room in the planner, motion finished, a time reached) and returns its
+response.  GRBL and Marlin subclass it with their own line reader, parser and
+words.
+"""
+
+import enum
+import logging
+
+from ..faults import DISCONNECT_SECONDS, POWER_OFF_SECONDS, FaultPlan
+from .base import Emulator
+from .motion import MotionQueue
+
+__all__ = ["Power", "GcodeFirmware", "physical_home", "ALL_AXES"]
+
+log = logging.getLogger(__name__)
+
+EPS = 1e-9
+ALL_AXES = "XYZABC"
+
+
+class Power(enum.Enum):
+    ON = "on"
+    OFF = "off"              # a power loss: the firmware is not running
+    UNPLUGGED = "unplugged"  # the cable is out: the firmware runs, the port is gone
+
+
+def physical_home(machine, ring_now):
+    """Where the home switches are: (ring degrees nearest ``ring_now``, head mm).
+
+    The ring's switch trips once a turn, at ``controller.home_ring_deg`` (0 if
+    the machine file has none); the head's at ``controller.home_head_mm``
+    (default ``head.in_mm``: the head homes to IN).
+    """
+    v = machine.values
+    ring0 = v.get("controller.home_ring_deg") or 0.0
+    head = v.get("controller.home_head_mm")
+    head = v["head.in_mm"] if head is None else head
+    return ring0 + round((ring_now - ring0) / 360.0) * 360.0, head
+
+
+class GcodeFirmware(Emulator):
+    """Common machinery; subclasses set ``EOL``, ``base_axes`` and implement the protocol."""
+
+    EOL = b"\r\n"
+    base_axes = "XYZ"
+
+    def __init__(self, machine, *, world=None, faults=None, planner_blocks, rates=None, accels=None):
+        super().__init__()
+        if world is None:
+            from ..world import World
+            world = World(machine)
+        self.machine, self.world = machine, world
+        self.faults = faults if isinstance(faults, FaultPlan) else FaultPlan(faults or ())
+        ring, head = machine["controller.ring_axis"], machine["controller.head_axis"]
+        extra = "".join(a for a in ALL_AXES if a in (ring, head) and a not in self.base_axes)
+        self.axes = self.base_axes + extra
+        self.ring_i, self.head_i = self.axes.index(ring), self.axes.index(head)
+        n = len(self.axes)
+        self.motion = MotionQueue(planner_blocks, rates or [6000.0] * n, accels or [100.0] * n, [0.0] * n)
+        self.offset = [0.0] * n
+        self.power = Power.ON
+        self._out = bytearray()
+        self._rx = bytearray()
+        self._task = None          # (generator, predicate it waits on, silent) of the running line
+        self._timer = None         # virtual time a dwell ends
+        self._port_back_at = None
+        self.dropped_bytes = 0
+
+    # ---- the Emulator interface -------------------------------------------------------------
+    def transmit(self):
+        data = bytes(self._out)
+        self._out.clear()
+        return data
+
+    def _event_times(self):
+        times = [self.motion.time_to_event()]
+        if self._timer is not None:
+            times.append(max(self._timer - self.now, 0.0))
+        if self._port_back_at is not None:
+            times.append(max(self._port_back_at - self.now, 0.0))
+        return times
+
+    def next_event_in(self):
+        times = [t for t in self._event_times() if t is not None]
+        return min(times) if times else None
+
+    @property
+    def busy(self):
+        return bool(self._out) or self.next_event_in() is not None
+
+    def advance(self, dt=None):
+        if dt is None:
+            nxt = self.next_event_in()
+            if nxt is None:
+                return 0.0
+            dt = nxt
+        remaining = dt
+        while True:
+            nxt = self.next_event_in()
+            step = remaining if nxt is None else min(nxt, remaining)
+            self._run(step)
+            remaining -= step
+            if remaining <= EPS:
+                break
+        return dt
+
+    def reconnect(self):
+        """Run the clock until the port is back (no-op if it is up)."""
+        if self._port_back_at is not None:
+            self.advance(max(self._port_back_at - self.now, 0.0))
+
+    # ---- time -----------------------------------------------------------------------------------
+    def _run(self, step):
+        before = self.motion.position
+        done = self.motion.run(step) if self.power is not Power.OFF else []
+        self.now += step
+        if self.motion.position != before or done:
+            self._move_world([b.target for b in done] + [self.motion.position])
+        if self._port_back_at is not None and self.now >= self._port_back_at - EPS:
+            self._port_back()
+        self._after_run()
+        self._pump()
+
+    def _after_run(self):
+        """Subclass hook: state changes once time has passed."""
+
+    def _move_world(self, points):
+        for p in points:
+            ring = p[self.ring_i] + self.offset[self.ring_i]
+            head = p[self.head_i] + self.offset[self.head_i]
+            if (ring, head) != (self.world.ring_deg, self.world.head_mm):
+                self.world.move(ring, head)
+
+    def _physical(self):
+        return [self.world.ring_deg, self.world.head_mm]
+
+    def _wipe_belief(self):
+        """The firmware forgets where it is: position 0 wherever the axes physically are."""
+        physical = self._physical()
+        self.motion.clear()
+        self.motion.set_position([0.0] * len(self.axes))
+        self.offset = [0.0] * len(self.axes)
+        self.offset[self.ring_i], self.offset[self.head_i] = physical
+
+    def _belief_is_physical(self):
+        """After homing: the firmware's position is the physical one on the ring and head axes."""
+        position = list(self.motion.position)
+        position[self.ring_i], position[self.head_i] = self._physical()
+        self.offset = [0.0] * len(self.axes)
+        self.motion.set_position(position)
+        return position
+
+    def _home_moves(self, axes=None):
+        """Belief targets that take the head, then the ring, to their switches (``axes``: letters)."""
+        home_ring, home_head = physical_home(self.machine, self.world.ring_deg)
+        targets, pos = [], list(self.motion.position)
+        for i, value in ((self.head_i, home_head), (self.ring_i, home_ring)):
+            if axes is None or self.axes[i] in axes:
+                pos = list(pos)
+                pos[i] = value - self.offset[i]
+                targets.append(tuple(pos))
+        return targets
+
+    # ---- output -----------------------------------------------------------------------------------
+    def _emit(self, line):
+        if self.power is Power.ON and self.port_up:
+            self._out += line.encode("latin-1") + self.EOL
+
+    # ---- port faults ------------------------------------------------------------------------------
+    def _line_faults(self):
+        """Count a received line; handle the faults that take the port or the firmware away.
+
+        Returns the set of fault kinds left for the protocol to apply
+        (``garble``, ``error``, ``drop-ok``), or None when the line is gone.
+        """
+        kinds = self.faults.next_line()
+        if "power" in kinds:
+            self._port_down(Power.OFF, POWER_OFF_SECONDS)
+            return None
+        if "disconnect" in kinds:
+            self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
+            return None
+        if "reset" in kinds:
+            self._brownout()
+            return None
+        return kinds
+
+    @staticmethod
+    def garble(raw):
+        """Corrupt a line in transit: its middle byte becomes DEL (0x7F)."""
+        raw = bytearray(raw)
+        if raw:
+            raw[len(raw) // 2] = 0x7F
+        log.info("fault: line garbled to %r", bytes(raw))
+        return bytes(raw)
+
+    def _port_down(self, power, seconds):
+        log.info("fault: port down (%s) for %.2f s", power.value, seconds)
+        self.power = power
+        self.port_up = False
+        self._out.clear()
+        self._rx.clear()
+        self._clear_input()
+        if power is Power.OFF:
+            self.motion.clear()
+            self._task, self._timer = None, None
+        self._port_back_at = self.now + seconds
+
+    def _port_back(self):
+        was_off = self.power is Power.OFF
+        self._port_back_at = None
+        self.power = Power.ON
+        self.port_up = True
+        if was_off:
+            self._power_on()
+        log.info("port back up")
+
+    def _clear_input(self):
+        """Subclass hook: forget partial lines and queued commands."""
+
+    def _power_on(self):
+        """Subclass hook: the firmware starts after a power loss."""
+
+    def _brownout(self):
+        """Subclass hook: the firmware resets by itself."""
+
+    # ---- the running line ---------------------------------------------------------------------------
+    def _start_task(self, result, silent):
+        """Run a line's result: an immediate response, or a task generator."""
+        if hasattr(result, "send"):
+            try:
+                self._task = (result, result.send(None), silent)
+            except StopIteration as stop:
+                self._respond(stop.value, silent)
+        else:
+            self._respond(result, silent)
+
+    def _step_task(self):
+        """Advance the running task as far as it can go; True when no task is left running."""
+        while self._task is not None:
+            gen, pred, silent = self._task
+            if not pred():
+                return False
+            try:
+                self._task = (gen, gen.send(None), silent)
+            except StopIteration as stop:
+                self._task = None
+                self._respond(stop.value, silent)
+        return True
+
+    def _dwell_task(self, seconds):
+        """Wait for motion to finish, then ``seconds``."""
+        while not self.motion.empty:
+            yield lambda: self.motion.empty
+        self._timer = self.now + seconds
+        yield lambda: self.now >= self._timer - EPS
+        self._timer = None
+        return 0
+
+    def _queue_task(self, targets, *, rapid, feed, inverse=False, line_number=0, kind="line"):
+        """Queue blocks to ``targets`` as the planner makes room."""
+        for target in targets:
+            while self.motion.free <= 0:
+                yield lambda: self.motion.free > 0
+            start = self.motion.blocks[-1].target if self.motion.blocks else tuple(self.motion.position)
+            if self.motion.add(start, target, rapid=rapid, feed=feed, inverse_time=inverse,
+                               line_number=line_number, kind=kind) is not None:
+                self._motion_queued(kind)
+        return 0
+
+    def _motion_queued(self, kind):
+        """Subclass hook: a block went into the planner."""
+
+    def _respond(self, code, silent=False):
+        raise NotImplementedError
+
+    def _pump(self):
+        raise NotImplementedError
