@@ -102,9 +102,15 @@ def test_every_schema_key_is_documented_in_docs_machines_md():
 @pytest.mark.slow
 def test_bundled_machines_found_after_a_plain_install(tmp_path):
     """``pip install .`` (not editable) ships machines/*.toml as firmware_protocol/machines."""
+    import shutil
+    src = tmp_path / "src"          # build from a copy: no build/ folder left in the tree
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(ROOT / name, src / name) if src.exists() else (src.mkdir(), shutil.copy(ROOT / name, src / name))
+    for name in ("stringbot", "firmware_protocol", "machines"):
+        shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__"))
     target = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q",
-                    "--target", str(target), str(ROOT)], check=True, capture_output=True)
+                    "--target", str(target), str(src)], check=True, capture_output=True)
     code = ("import firmware_protocol.machine as m; print(m.bundled_dir()); print(','.join(m.bundled_machines()))")
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env={"PYTHONPATH": str(target)},
                          check=True, capture_output=True, text=True).stdout.splitlines()
