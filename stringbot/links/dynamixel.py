@@ -365,9 +365,12 @@ class DynamixelLink:
     def stop_point(self):
         """Where a stop left the job: ``{"step_index", "move", "position"}`` for the journal.
 
-        ``move`` is the index in the step's moves of the move that was running
-        (its target not reached); resume with ``execute_lines(step, step.moves[move:])``
-        after ``prepare(resume_at=position)``.
+        ``step_index`` is the first step not yet handed to the wind loop as executed
+        and ``move`` the first of its moves not known to have arrived (the one
+        that was running; ``len(step.moves)`` when all had).  Resume with
+        ``prepare(resume_at=position)`` then ``execute_lines(step, step.moves[move:])``:
+        each Move is an absolute target, so re-issuing the interrupted one from
+        where the axes stopped finishes the same path, and no pin is hooked twice.
         """
         return {"step_index": self._step_index, "move": self._move_index, "position": list(self.position())}
 
@@ -380,19 +383,20 @@ class DynamixelLink:
     def run_step(self, step, *, moves=None, on_executed=None):
         """Execute one :class:`~stringbot.motion.HookStep` (or the rest of it: ``moves``)."""
         self.where = (step.index + 1, step.pin)       # people count steps from 1
-        self._step_index = step.index
         moves = step.moves if moves is None else moves
         first = len(step.moves) - len(moves)
+        self._step_index = step.index
         for k, move in enumerate(moves):
             self._move_index = first + k
             self.move_to(move.ring_deg, move.head_mm)
-        self._move_index = None
+        self._move_index = len(step.moves)            # all arrived; not yet handed over
         if step.dwell_s:
             time.sleep(step.dwell_s)
         if on_executed is not None:
             on_executed(step)
         else:
             self._executed.append(step)
+        self._step_index, self._move_index = step.index + 1, 0
 
     def move_to(self, ring_deg, head_mm):
         """Write the goals that change and wait until both servos are there.
