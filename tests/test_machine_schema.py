@@ -104,8 +104,9 @@ def test_bundled_machines_found_after_a_plain_install(tmp_path):
     """``pip install .`` (not editable) ships machines/*.toml as firmware_protocol/machines."""
     import shutil
     src = tmp_path / "src"          # build from a copy: no build/ folder left in the tree
+    src.mkdir()
     for name in ("pyproject.toml", "README.md"):
-        shutil.copy(ROOT / name, src / name) if src.exists() else (src.mkdir(), shutil.copy(ROOT / name, src / name))
+        shutil.copy(ROOT / name, src / name)
     for name in ("stringbot", "firmware_protocol", "machines"):
         shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__"))
     target = tmp_path / "site"
