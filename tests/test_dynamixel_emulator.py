@@ -213,3 +213,20 @@ def test_fault_syntax_errors_name_the_forms():
         "power_loss", 12, "silent", 3, 2, "corrupt", 9)
     with pytest.raises(ValueError, match="expected power_loss@move=N"):
         parse_faults("explode@move=1")
+
+
+def test_broadcast_reboot_is_silent_and_clear_resets_the_turn_count(machine):
+    emu = DynamixelEmulator(machine)
+    write(emu, 1, "Operating Mode", 4)
+    write(emu, 1, "Torque Enable", 1)
+    write(emu, 1, "Goal Position", -3 * 4096 + 100)
+    emu.advance(None)
+    [status] = exchange(emu, 1, I.CLEAR, dx.CLEAR_MULTI_TURN)
+    assert status.error == 0x01                                   # Result Fail: torque is on
+    write(emu, 1, "Torque Enable", 0)
+    [status] = exchange(emu, 1, I.CLEAR, dx.CLEAR_MULTI_TURN)
+    assert status.error == 0 and read(emu, 1, "Present Position") == 100
+    write(emu, 1, "Homing Offset", -3 * 4096)
+    assert read(emu, 1, "Present Position") == -3 * 4096 + 100
+    assert exchange(emu, dx.BROADCAST_ID, I.REBOOT) == []
+    assert read(emu, 1, "Present Position") == -3 * 4096 + 100   # Homing Offset is EEPROM

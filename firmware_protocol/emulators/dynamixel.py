@@ -505,8 +505,8 @@ class DynamixelEmulator(Emulator):
                 if s is not None and s.power is Power.ON:
                     self._write(s, address, body[i + 1:i + 1 + length], reply=False)
         elif ins == dx.Instruction.REBOOT:
-            for s in powered:
-                if self._send(s) or p.id == dx.BROADCAST_ID:
+            for s in powered:                       # a broadcast REBOOT gets no status packet
+                if p.id == dx.BROADCAST_ID or self._send(s):
                     s.power_up(self.now)
                     self.log.append((self.now, f"reboot {s.id}"))
         elif ins == dx.Instruction.CLEAR:
