@@ -169,3 +169,27 @@ def test_bad_fault_in_a_sim_url_is_bad_input(machine):
 
     with pytest.raises(BadInput, match="expected power_loss@move=N"):
         open_link("sim://?machine=dynamixel-ring&faults=explode@3", machine)
+
+
+def test_the_ring_stays_within_the_travel_bound_inside_the_extended_range(machine):
+    """A plan that keeps going one way round: the motion layer's bound holds on the servo."""
+    values = dict(machine.values)
+    values["ring.travel_deg"] = 720.0
+    tight = type(machine)(machine.name, machine.path, values)
+    plan = make_plan([0, 100, 200] * 12 + [0])
+    server, emu, world = serve(tight)
+    seen = []
+    move = world.move
+    world.move = lambda r, h: (seen.append(emu.ring.present), move(r, h))
+    link = DynamixelLink(tight, server.path)
+    try:
+        link.identify()
+        steps = hook_steps(plan, tight, start_ring_deg=link.prepare()[0])
+        link.execute(steps)
+    finally:
+        link.close()
+        server.close()
+    assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
+    bound = link.ring_ticks(720.0)
+    assert max(seen) - min(seen) > link.ring_ticks(360.0)          # it did turn a lot ...
+    assert -bound <= min(seen) and max(seen) <= bound              # ... but never past the bound
