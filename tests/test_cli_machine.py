@@ -71,6 +71,8 @@ def test_gcode_writes_a_job_that_replays_exactly(capsys, tmp_path, plan_path, na
         assert "G4 P0" in lines and lines[-1] == "M2"
     home = "G28 Y A" if name == "marlin-ring" else "$H"
     assert (home in lines) == machine["controller.homing"]
+    if home in lines:       # before any G-code: GRBL with homing on is locked in alarm until $H
+        assert lines.index(home) < lines.index("G21")
 
 
 def test_estimate_prints_time_travel_and_thread(capsys, plan_path):

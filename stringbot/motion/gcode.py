@@ -46,7 +46,11 @@ class GcodeDialect:
         return ["G21", "G90", "G94"]
 
     def home(self):
-        """Homing and declaring the homed position; empty unless ``controller.homing``."""
+        """Homing and declaring the homed position; empty unless ``controller.homing``.
+
+        Send these before :meth:`preamble`: GRBL with homing enabled starts
+        locked in alarm and refuses G-code until ``$H``.
+        """
         if not self.machine["controller.homing"]:
             return []
         return [self.home_command(), self.set_position(*self.home_position())]
@@ -159,8 +163,9 @@ def gcode_job(plan, machine, *, plan_name=None):
     Returns
     -------
     str
-        Header comment, modal setup, homing (if asked), the steps each with a
-        progress comment, and a clean end; newline-terminated.
+        Header comment, homing (if asked: first, since a GRBL with homing
+        enabled is locked in alarm until ``$H``), modal setup, the steps each
+        with a progress comment, and a clean end; newline-terminated.
     """
     dialect = dialect_for(machine)
     start = dialect.home_position()[0] if machine["controller.homing"] else 0.0
@@ -178,8 +183,8 @@ def gcode_job(plan, machine, *, plan_name=None):
         f"(shortest-arc lower bound {est.lower_bound_deg:.0f} deg)",
         "; tie the thread on at the start; the machine hooks every pin of the sequence",
     ]
+    lines += dialect.home()         # first: a GRBL that homes starts in alarm and refuses G-code until $H
     lines += dialect.preamble()
-    lines += dialect.home()
     for step in steps:
         lines += dialect.step_lines(step)
     lines += dialect.end()
