@@ -242,3 +242,24 @@ def test_profile_velocity_above_the_velocity_limit_is_bad_input(machine):
         link.close()
     finally:
         server.close()
+
+
+@pytest.mark.parametrize("bus", ["hardware@1:id=2:bits=0x04"], indirect=True)
+def test_unlock_reboots_a_faulted_servo_and_set_position_declares_the_ring(bus, machine):
+    server, emu, world = bus
+    link = link_on(server, machine)
+    try:
+        link.prepare()
+        with pytest.raises(MachineFailure, match=r"head servo \(id 2\) reports a hardware error: Overheating Error"):
+            link.move_to(0.0, 12.0)
+        link.unlock()
+        assert emu.head.get("Hardware Error Status") == 0 and emu.head.get("Torque Enable") == 0
+        link.prepare(resume_at=link.position())
+        assert link.set_position(1234.5, link.position()[1])[0] == pytest.approx(1234.5, abs=0.03)
+        assert emu.ring.get("Torque Enable") == 1
+        link.move_to(1244.5, 0.0)                                # 10 degrees on from the declared place
+        assert world.ring_deg == pytest.approx(10.0, abs=0.03)
+        with pytest.raises(MachineFailure, match="head servo reads"):
+            link.set_position(0.0, 12.0)
+    finally:
+        link.close()

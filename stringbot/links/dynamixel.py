@@ -30,29 +30,19 @@ import math
 import time
 from dataclasses import dataclass
 
-import dynamixel_sdk as sdk
 import serial
 
 from firmware_protocol import dynamixel as dx
 
 from ..errors import BadInput, MachineFailure
 from .base import FirmwareInfo, LinkState, Status
-from .ports import open_port
+from .dynamixel_bus import ServoBus, comm_name, poll_field
 
 __all__ = ["DynamixelLink", "ServoInfo", "open_dynamixel_link", "comm_name"]
 
 log = logging.getLogger(__name__)
 
 CT = dx.CONTROL_TABLE
-#: One sync read per poll covers Torque Enable (64) .. Present Position (132..135).
-POLL_START = CT["Torque Enable"].address
-POLL_LENGTH = CT["Present Position"].address + 4 - POLL_START
-_COMM = {getattr(sdk, name): name for name in dir(sdk) if name.startswith("COMM_")}
-
-
-def comm_name(result):
-    """``-3001`` -> ``'COMM_RX_TIMEOUT'``."""
-    return _COMM.get(result, f"COMM result {result}")
 
 
 @dataclass(frozen=True)
@@ -65,19 +55,6 @@ class ServoInfo:
     @property
     def model_name(self):
         return dx.MODELS.get(self.model, f"model {self.model}")
-
-
-class _UrlPortHandler(sdk.PortHandler):
-    """The SDK's port handler, opening URLs (``sim://``, ``socket://``) through :func:`open_port`."""
-
-    def setupPort(self, cflag_baud):
-        if self.is_open:
-            self.closePort()
-        self.ser = open_port(self.port_name, baudrate=self.baudrate, timeout=0)
-        self.is_open = True
-        self.ser.reset_input_buffer()
-        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
-        return True
 
 
 class DynamixelLink:
@@ -113,16 +90,12 @@ class DynamixelLink:
         self.goal = {}              # id -> last Goal Position written
         self.present = {}           # id -> last Present Position read
         self.where = (None, None)   # (step, pin) running, for messages
-        self.polls = 0
-        self.packets = 0
-        self.retried = 0
         self._move_index = None
         self._step_index = None
         self.info = None
         self._executed = []         # steps executed but not yet handed to the wind loop
         self._check_travel()
-        self.port = (_UrlPortHandler if "://" in self.url else sdk.PortHandler)(self.url)
-        self.ph = sdk.PacketHandler(c("protocol"))
+        self.bus = ServoBus(self.url, self.role, self._fail, protocol=c("protocol"), retries=retries)
 
     # ---- units ------------------------------------------------------------------------------
     def ring_ticks(self, ring_deg):
@@ -159,57 +132,21 @@ class DynamixelLink:
         return MachineFailure(message, step=step, pin=pin)
 
     def _name(self, servo_id):
-        return f"{self.role.get(servo_id, 'unknown')} servo (id {servo_id})"
+        return self.bus.name(servo_id)
 
-    def _exchange(self, servo_id, what, call, *args):
-        """Run an SDK call returning (..., result, error); retry COMM failures; check the error byte."""
-        for attempt in range(self.retries + 1):
-            self.port.is_using = False        # an interrupted exchange must not leave the port "busy"
-            out = call(*args)
-            result, error = out[-2], out[-1]
-            if result == sdk.COMM_SUCCESS:
-                break
-            self.retried += 1
-            log.warning("%s: %s %s (attempt %d of %d)", self._name(servo_id), what, comm_name(result),
-                        attempt + 1, self.retries + 1)
-        else:
-            raise self._comm_failure(servo_id, what, result)
-        if error & 0x7F:
-            raise self._fail(f"{self._name(servo_id)} refused {what}: {dx.status_error_name(error & 0x7F)}")
-        if error & dx.ERRBIT_ALERT and what not in ("reading Hardware Error Status", "reboot"):
-            raise self._hardware_failure(servo_id)
-        return out[0] if len(out) == 3 else None
-
-    def _comm_failure(self, servo_id, what, result):
-        hint = {sdk.COMM_RX_TIMEOUT: "it does not answer: check its power, cable, id and baud rate",
-                sdk.COMM_RX_CORRUPT: "its answers arrive corrupted: check the cable and termination",
-                sdk.COMM_PORT_BUSY: "the port is busy"}.get(result, self.ph.getTxRxResult(result))
-        return self._fail(f"{self._name(servo_id)} failed {what}: {comm_name(result)} "
-                          f"after {self.retries + 1} attempts; {hint}")
-
-    def _hardware_failure(self, servo_id):
-        try:
-            bits = self._read(servo_id, "Hardware Error Status")
-        except MachineFailure:
-            bits = 0
-        names = ", ".join(dx.hardware_error_names(bits)) or "Alert bit set"
-        return self._fail(f"{self._name(servo_id)} reports a hardware error: {names}; torque is off "
-                          "until the servo is rebooted (power cycle, or resume which reboots it)")
-
-    # ---- control table ----------------------------------------------------------------------
     def _read(self, servo_id, name):
-        f = CT[name]
-        call = {1: self.ph.read1ByteTxRx, 2: self.ph.read2ByteTxRx, 4: self.ph.read4ByteTxRx}[f.size]
-        value = self._exchange(servo_id, f"reading {name}", call, self.port, servo_id, f.address)
-        if f.signed and value >= 1 << (8 * f.size - 1):
-            value -= 1 << (8 * f.size)
-        return value
+        return self.bus.read(servo_id, name)
 
     def _write(self, servo_id, name, value):
-        f = CT[name]
-        call = {1: self.ph.write1ByteTxRx, 2: self.ph.write2ByteTxRx, 4: self.ph.write4ByteTxRx}[f.size]
-        raw = value & ((1 << (8 * f.size)) - 1)
-        self._exchange(servo_id, f"writing {name} = {value}", call, self.port, servo_id, f.address, raw)
+        self.bus.write(servo_id, name, value)
+
+    @property
+    def polls(self):
+        return self.bus.polls
+
+    @property
+    def retried(self):
+        return self.bus.retried
 
     # ---- life -------------------------------------------------------------------------------
     def open(self):
@@ -217,13 +154,12 @@ class DynamixelLink:
         if self.state is not LinkState.CLOSED:
             return
         try:
-            opened = self.port.openPort()
+            opened = self.bus.open(self.machine["controller.baud"])
         except (serial.SerialException, OSError, ValueError) as exc:
             first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise BadInput(f"cannot open port {self.url!r}: {first}; give --port the servo adapter's "
                            "device (e.g. /dev/ttyUSB0) or the emulator's pty") from None
-        if not opened or not self.port.setBaudRate(self.machine["controller.baud"]):
-            self.port.closePort()
+        if not opened:
             raise BadInput(f"controller.baud = {self.machine['controller.baud']} is not a baud rate the "
                            "Dynamixel SDK supports; expected e.g. 57600, 115200, 1000000, 2000000, 4000000")
         self.state = LinkState.OPEN
@@ -233,7 +169,7 @@ class DynamixelLink:
         self.open()
         expected = self.machine["controller.model_number"]
         for role, servo_id in self.ids.items():
-            model, _, _ = self._ping(servo_id)
+            model = self.bus.ping(servo_id)
             firmware = self._read(servo_id, "Firmware Version")
             if expected is not None and model != expected:
                 raise self._fail(f"{self._name(servo_id)} is a {dx.MODELS.get(model, f'model {model}')} "
@@ -247,15 +183,6 @@ class DynamixelLink:
                                  lines=(self.describe(),))
         log.info("connected: %s", self.describe())
         return list(self.servos.values())
-
-    def _ping(self, servo_id):
-        for attempt in range(self.retries + 1):
-            self.port.is_using = False
-            model, result, error = self.ph.ping(self.port, servo_id)
-            if result == sdk.COMM_SUCCESS:
-                return model, result, error
-            self.retried += 1
-        raise self._comm_failure(servo_id, "ping", result)
 
     def describe(self):
         parts = [f"{s.role} id {s.id}: {s.model_name} fw {s.firmware}" for s in self.servos.values()]
@@ -278,7 +205,7 @@ class DynamixelLink:
             if bits:
                 log.warning("%s had a hardware error (%s): rebooting it", self._name(servo_id),
                             ", ".join(dx.hardware_error_names(bits)))
-                self._exchange(servo_id, "reboot", self.ph.reboot, self.port, servo_id)
+                self.bus.reboot(servo_id)
                 time.sleep(0.1)
             limit = self._read(servo_id, "Velocity Limit")
             if self.machine["controller.profile_velocity"] > limit:
@@ -293,7 +220,7 @@ class DynamixelLink:
                 self._write(servo_id, "Operating Mode", mode)
         if resume_at is None:
             self._write(ring, "Homing Offset", 0)
-            self._exchange(ring, "clearing the turn count", self.ph.clearMultiTurn, self.port, ring)
+            self.bus.clear_multi_turn(ring)
         else:
             self._rebase(resume_at[0], torque_was_on)
         for servo_id in (ring, head):
@@ -374,10 +301,51 @@ class DynamixelLink:
         """
         return {"step_index": self._step_index, "move": self._move_index, "position": list(self.position())}
 
+    def home(self):
+        """Nothing to home: the servos' encoders are absolute (see :meth:`prepare` for re-basing)."""
+        log.info("Dynamixel servos have absolute encoders: nothing to home")
+        return self.position()
+
+    def set_position(self, ring_deg, head_mm):
+        """Declare where the ring is (an operator's check): Homing Offset makes it so.
+
+        The head servo's single-turn position is absolute and cannot be declared;
+        a head more than 1 mm from ``head_mm`` is an error.
+        """
+        ring, head = self.ids["ring"], self.ids["head"]
+        here = self._read(head, "Present Position")
+        if abs(self.head_mm(here) - head_mm) > 1.0:
+            raise self._fail(f"the head servo reads {self.head_mm(here):.2f} mm, not the declared "
+                             f"{head_mm:.2f} mm; its position is absolute: check head_in_ticks/head_out_ticks")
+        torque = self._read(ring, "Torque Enable")
+        self._write(ring, "Torque Enable", 0)
+        present = self._read(ring, "Present Position")
+        offset = self._read(ring, "Homing Offset") + self.ring_ticks(ring_deg) - present
+        if abs(offset) > CT["Homing Offset"].hi:
+            raise self._fail(f"cannot declare the ring at {ring_deg:g} deg: Homing Offset {offset} "
+                             "would leave +-1,044,479")
+        self._write(ring, "Homing Offset", offset)
+        if torque:
+            self._write(ring, "Torque Enable", 1)
+        for servo_id in (ring, head):
+            self.present[servo_id] = self.goal[servo_id] = self._read(servo_id, "Present Position")
+        return self.position()
+
+    def unlock(self):
+        """Clear hardware errors without moving: reboot the servos that report one (torque off after)."""
+        for servo_id in self.ids.values():
+            bits = self._read(servo_id, "Hardware Error Status")
+            if bits:
+                log.warning("%s: %s; rebooting it", self._name(servo_id), ", ".join(dx.hardware_error_names(bits)))
+                self.bus.reboot(servo_id)
+
+    def flush(self):
+        """Nothing is queued: every goal is waited for."""
+
     @property
     def lines_sent(self):
         """Instruction packets sent (writes and polls), the analogue of G-code lines."""
-        return self.packets + self.polls
+        return self.bus.packets + self.bus.polls
 
     # ---- motion -----------------------------------------------------------------------------
     def run_step(self, step, *, moves=None, on_executed=None):
@@ -427,18 +395,7 @@ class DynamixelLink:
     def _go(self, changed):
         self.state = LinkState.STREAMING
         start = dict(self.present)
-        if len(changed) == 1:
-            [(servo_id, goal)] = changed.items()
-            self._write(servo_id, "Goal Position", goal)
-        else:
-            group = sdk.GroupSyncWrite(self.port, self.ph, CT["Goal Position"].address, 4)
-            for servo_id, goal in changed.items():
-                group.addParam(servo_id, list(dx.to_bytes(goal, 4, signed=True)))
-            self.port.is_using = False
-            result = group.txPacket()
-            if result != sdk.COMM_SUCCESS:
-                raise self._comm_failure(self.ids["ring"], "sync-writing Goal Position", result)
-        self.packets += 1
+        self.bus.write_goals(changed)
         self.goal.update(changed)
         self._wait(changed, start)
         self.state = LinkState.READY
@@ -458,11 +415,11 @@ class DynamixelLink:
             table = self._poll()
             arrived = True
             for servo_id, data in table.items():
-                torque, hw = data[0], data[CT["Hardware Error Status"].address - POLL_START]
-                moving = data[CT["Moving"].address - POLL_START]
+                torque, hw = poll_field(data, "Torque Enable"), poll_field(data, "Hardware Error Status")
+                moving = poll_field(data, "Moving")
                 present = self.present[servo_id]
                 if hw:
-                    raise self._hardware_failure(servo_id)
+                    raise self.bus.hardware_failure(servo_id, hw)
                 if not torque:
                     raise self._fail(f"{self._name(servo_id)} lost torque (power loss or reboot?) on the way "
                                      f"from {start.get(servo_id)} to {self.goal[servo_id]} ticks; its position "
@@ -477,40 +434,19 @@ class DynamixelLink:
                 raise self._fail(f"move did not arrive in time: {late or 'still moving'}")
 
     def _poll(self):
-        """One sync read of Torque Enable .. Present Position from both servos."""
-        group = sdk.GroupSyncRead(self.port, self.ph, POLL_START, POLL_LENGTH)
-        for servo_id in self.ids.values():
-            group.addParam(servo_id)
-        for attempt in range(self.retries + 1):
-            self.port.is_using = False
-            result = group.txRxPacket()
-            self.polls += 1
-            if result == sdk.COMM_SUCCESS:
-                break
-            self.retried += 1
-            culprit = next((i for i in self.ids.values() if not group.data_dict.get(i)), self.ids["ring"])
-            log.warning("%s: polling %s (attempt %d of %d)", self._name(culprit), comm_name(result),
-                        attempt + 1, self.retries + 1)
-            for servo_id in self.ids.values():
-                group.data_dict[servo_id] = []
-        else:
-            raise self._comm_failure(culprit, "polling its position", result)
-        out = {}
-        for servo_id in self.ids.values():
-            data = bytes(group.data_dict[servo_id])
-            out[servo_id] = data
-            if data[0]:    # with torque off the position may be re-based: keep the last trusted one
-                self.present[servo_id] = dx.from_bytes(data[-4:], signed=True)
-        return out
+        """Torque, errors, Moving and positions of both servos (one sync read)."""
+        table = self.bus.poll(list(self.ids.values()))
+        for servo_id, data in table.items():
+            if poll_field(data, "Torque Enable"):   # torque off: the position may be re-based
+                self.present[servo_id] = poll_field(data, "Present Position")
+        return table
 
     def hold(self):
         """Stop where the servos are (Goal Position := Present Position), torque kept on.
 
         Returns the :class:`Status` after stopping (``mpos`` = (ring_deg, head_mm)).
         """
-        time.sleep(0.02)                  # let an answer to an interrupted exchange arrive ...
-        self.port.is_using = False
-        self.port.clearPort()             # ... and drop it
+        self.bus.drop_input(settle_s=0.02)      # an answer to an interrupted exchange
         for servo_id in self.ids.values():
             try:
                 here = self._read(servo_id, "Present Position")
@@ -527,9 +463,9 @@ class DynamixelLink:
 
     def close(self):
         """Close the port; the servos keep their torque (the thread stays tensioned)."""
-        if self.state is not LinkState.CLOSED and self.port.ser is not None:
+        if self.state is not LinkState.CLOSED:
             try:
-                self.port.closePort()
+                self.bus.close()
             except Exception:  # closing a dead port must not hide the real error
                 log.debug("closing the port failed", exc_info=True)
         self.state = LinkState.CLOSED
