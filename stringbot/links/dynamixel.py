@@ -413,19 +413,20 @@ class DynamixelLink:
                self.ids["head"]: max(1, abs(self.head_out - self.head_in) // 100)}
         while True:
             table = self._poll()
-            arrived = True
+            arrived, limp = True, []
             for servo_id, data in table.items():
-                torque, hw = poll_field(data, "Torque Enable"), poll_field(data, "Hardware Error Status")
-                moving = poll_field(data, "Moving")
-                present = self.present[servo_id]
+                hw = poll_field(data, "Hardware Error Status")
                 if hw:
                     raise self.bus.hardware_failure(servo_id, hw)
-                if not torque:
-                    raise self._fail(f"{self._name(servo_id)} lost torque (power loss or reboot?) on the way "
-                                     f"from {start.get(servo_id)} to {self.goal[servo_id]} ticks; its position "
-                                     "may be re-based to one turn: resume to continue")
-                if moving or abs(present - self.goal[servo_id]) > tol[servo_id]:
+                if not poll_field(data, "Torque Enable"):
+                    limp.append(self._name(servo_id))
+                if poll_field(data, "Moving") or abs(self.present[servo_id] - self.goal[servo_id]) > tol[servo_id]:
                     arrived = False
+            if limp:
+                moving = " and ".join(f"the {self.role[i]} from {start.get(i)} to {g} ticks"
+                                      for i, g in changed.items())
+                raise self._fail(f"{' and '.join(limp)} lost torque (power loss or reboot?) while moving "
+                                 f"{moving}; a position may be re-based to one turn: resume to continue")
             if arrived:
                 return
             if time.monotonic() > deadline:
