@@ -193,3 +193,23 @@ def test_the_ring_stays_within_the_travel_bound_inside_the_extended_range(machin
     bound = link.ring_ticks(720.0)
     assert max(seen) - min(seen) > link.ring_ticks(360.0)          # it did turn a lot ...
     assert -bound <= min(seen) and max(seen) <= bound              # ... but never past the bound
+
+
+def test_the_wind_loop_drives_the_servos_through_the_pty(machine, tmp_path):
+    """stringbot.winding's session and Winder, the link it opens for kind = dynamixel, the SDK on a pty."""
+    from stringbot.planner import write_plan
+    from stringbot.winding import load_job, read_journal, wind_plan
+
+    plan = make_plan(PLANS["random"])
+    path = tmp_path / "plan.json"
+    write_plan(plan, path)
+    server, emu, world = serve(machine)
+    seen = []
+    try:
+        result = wind_plan(load_job(path, "dynamixel-ring", port=server.path), progress=seen.append)
+    finally:
+        server.close()
+    assert result.steps_done == len(plan.sequence) and result.firmware.startswith("Dynamixel XM430-W350")
+    assert [p.done for p in seen] == list(range(1, len(plan.sequence) + 1))
+    assert read_journal(result.journal).finished
+    assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
