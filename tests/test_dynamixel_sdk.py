@@ -3,6 +3,7 @@
 import os
 import select
 import threading
+import time
 import tty
 
 import dynamixel_sdk as sdk
@@ -17,10 +18,13 @@ from stringbot.links.dynamixel import DynamixelLink
 
 
 class PtyServer:
-    """Serve an emulator on a pty (fast mode: when the host is quiet, run to the next event)."""
+    """Serve an emulator on a pty (fast mode: when the host is quiet, run to the next event;
+    realtime: virtual time follows the wall clock)."""
 
     def __init__(self, emu, idle_s=0.005):
         self.emu, self.idle_s = emu, idle_s
+        self.realtime = getattr(emu, "realtime", False)
+        self._t0 = time.monotonic()
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         self.path = os.ttyname(self.slave)
@@ -35,9 +39,11 @@ class PtyServer:
             if self._stop_r in ready:
                 return
             with self.lock:
+                if self.realtime:
+                    self.emu.advance(time.monotonic() - self._t0 - self.emu.now)
                 if self.master in ready:
                     self.emu.receive(os.read(self.master, 4096))
-                elif self.emu.busy:
+                elif self.emu.busy and not self.realtime:
                     self.emu.advance(None)
                 out = self.emu.transmit()
             if out:
@@ -52,6 +58,7 @@ class PtyServer:
 
 def serve(machine, **kw):
     world = World(machine)
+    kw.setdefault("realtime", False)
     emu = DynamixelEmulator(machine, world=world, **kw)
     return PtyServer(emu), emu, world
 
@@ -263,3 +270,22 @@ def test_unlock_reboots_a_faulted_servo_and_set_position_declares_the_ring(bus, 
             link.set_position(0.0, 12.0)
     finally:
         link.close()
+
+
+def test_realtime_mode_takes_the_profile_time(machine):
+    """In realtime mode a move cannot arrive before its profile allows (a lower bound only)."""
+    server, emu, world = serve(machine, realtime=True)
+    link = link_on(server, machine)
+    try:
+        link.prepare()
+        v = 120 * 0.229 / 60 * 4096                     # ticks/s at Profile Velocity 120
+        a = 80 * 214.577 / 3600 * 4096                  # ticks/s^2 at Profile Acceleration 80
+        ticks = link.ring_ticks(45.0)                   # half a servo turn: 2048 ticks
+        expected = ticks / v + v / a
+        t0 = time.monotonic()
+        link.move_to(45.0, 0.0)
+        assert time.monotonic() - t0 >= 0.9 * expected
+        assert world.ring_deg == pytest.approx(45.0, abs=0.03)
+    finally:
+        link.close()
+        server.close()
