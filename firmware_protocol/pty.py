@@ -1,0 +1,188 @@
+"""Serve any emulator on a pseudo-terminal, behind a stable symlink.
+
+Programs that open serial ports by path (stringbot itself, bCNC, UGS, a
+terminal, the Dynamixel SDK) open ``path``; it is a symlink to the slave side
+of a pty whose master side this server reads and writes.  Bytes from the
+host go to :meth:`Emulator.receive`; the emulator's output is written back.
+
+Time: in realtime mode the emulator's clock follows the wall clock; in fast
+mode it jumps to the next event whenever the host has nothing for it and
+nothing is waiting to be read (as fast as possible, in order).
+
+When the emulator reports its port down (a ``disconnect`` or ``power``
+fault), the server closes the pty: the host sees its port fail as with a
+pulled USB cable.  Once the emulator's port is back, and not before
+``reopen_delay`` seconds, a new pty is opened and ``path`` re-pointed to it
+(atomically), so the host can reopen the same path.
+"""
+
+import errno
+import logging
+import os
+import select
+import time
+import tty
+
+__all__ = ["PtyServer"]
+
+log = logging.getLogger(__name__)
+
+
+class PtyServer:
+    """One emulator on one pty at ``path``.
+
+    Parameters
+    ----------
+    emulator : firmware_protocol.emulators.base.Emulator
+    path : str or path-like
+        Where the symlink to the pty lives (replaced if it exists).
+    realtime : bool
+        Run the emulator's clock at wall-clock speed (default: as fast as possible).
+    reopen_delay : float
+        Wall-clock seconds the port stays gone after a fault before it comes back.
+    """
+
+    def __init__(self, emulator, path, *, realtime=False, reopen_delay=0.3):
+        self.emulator = emulator
+        self.path = os.fspath(path)
+        self.realtime = realtime
+        self.reopen_delay = reopen_delay
+        self.master = None
+        self.slave_name = None
+        self._poll = None
+        self._client_since = None
+        self.generation = 0            # how many ptys have been opened
+        self._pending = bytearray()
+        self._down_since = None
+        self._wall = time.monotonic()
+
+    # ---- the pty ----------------------------------------------------------------------------
+    def start(self):
+        """Open the first pty and point ``path`` at it; returns ``self``."""
+        self._open()
+        return self
+
+    def _open(self):
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        name = os.ttyname(slave)
+        os.close(slave)                 # the host's open is then visible (no POLLHUP on the master)
+        os.set_blocking(master, False)
+        self.master, self.slave_name = master, name
+        self._poll = select.poll()
+        self._poll.register(master, select.POLLIN | select.POLLHUP | select.POLLERR)
+        self._client_since = None
+        tmp = f"{self.path}.{os.getpid()}.tmp"
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        os.symlink(name, tmp)
+        os.replace(tmp, self.path)
+        self.generation += 1
+        log.info("pty %s -> %s", self.path, name)
+
+    def _close_pty(self):
+        if self.master is not None:
+            try:
+                os.close(self.master)
+            except OSError:
+                pass
+        self.master = None
+        self._pending.clear()
+
+    def close(self):
+        """Close the pty and remove the symlink (if it is still ours)."""
+        self._close_pty()
+        try:
+            if os.path.islink(self.path) and os.readlink(self.path) == self.slave_name:
+                os.unlink(self.path)
+        except OSError:
+            pass
+
+    # ---- the loop ---------------------------------------------------------------------------
+    def serve(self, stop=None, *, poll=0.02):
+        """Move bytes and time until ``stop`` (a threading.Event) is set, or forever."""
+        while stop is None or not stop.is_set():
+            self.step(poll)
+
+    def step(self, timeout=0.02):
+        """One round: sync the clock, handle the port, move bytes, maybe advance time."""
+        emu = self.emulator
+        self._sync_clock()
+        if self.master is None:
+            self._while_down(timeout)
+            return
+        if not emu.port_up:
+            log.info("port dropped: closing %s", self.slave_name)
+            self._close_pty()
+            self._down_since = time.monotonic()
+            return
+        self._flush_out()
+        fast_busy = not self.realtime and emu.busy and not self._pending
+        wait = 0.0 if fast_busy else timeout
+        if self.realtime:
+            nxt = emu.next_event_in()
+            if nxt is not None:
+                wait = min(wait, max(nxt, 0.001))
+        events = self._poll.poll(wait * 1000.0)
+        flags = events[0][1] if events else 0
+        if flags & select.POLLHUP:
+            self._client_since = None       # nobody has the port open: hold the output
+            if not events or wait:
+                time.sleep(0 if fast_busy else min(timeout, 0.01))
+        elif self._client_since is None:
+            self._client_since = time.monotonic()
+        if flags & select.POLLIN and not flags & select.POLLHUP:
+            try:
+                data = os.read(self.master, 4096)
+            except (BlockingIOError, OSError):
+                data = b""
+            if data:
+                self._sync_clock()
+                emu.receive(data)
+                self._flush_out()
+                return
+        if not self.realtime and emu.busy and not self._pending:
+            emu.advance(None)
+        self._flush_out()
+
+    def _while_down(self, timeout):
+        emu = self.emulator
+        if not emu.port_up:
+            if self.realtime:
+                time.sleep(timeout)
+                return
+            emu.advance(None)
+            if emu.port_up:
+                self._down_since = self._down_since or time.monotonic()
+            return
+        if time.monotonic() - (self._down_since or 0.0) < self.reopen_delay:
+            time.sleep(min(timeout, self.reopen_delay))
+            return
+        self._open()
+        self._down_since = None
+
+    def _sync_clock(self):
+        now = time.monotonic()
+        if self.realtime and now > self._wall:
+            self.emulator.advance(now - self._wall)
+        self._wall = now
+
+    def _flush_out(self):
+        if self.master is None:
+            return
+        self._pending += self.emulator.transmit()
+        # hold output until a host has had the port open a moment (pyserial flushes input on open)
+        if self._client_since is None or time.monotonic() - self._client_since < 0.05:
+            return
+        while self._pending:
+            try:
+                n = os.write(self.master, self._pending)
+            except BlockingIOError:
+                return
+            except OSError as exc:
+                if exc.errno == errno.EIO:
+                    return
+                raise
+            del self._pending[:n]
