@@ -249,3 +249,39 @@ def _fmt_s(seconds):
     h, rest = divmod(seconds, 3600)
     m, s = divmod(rest, 60)
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+# == simulate command ==
+
+
+@cli.command("simulate")
+@click.option("--machine", "machine_name", default="grbl-ring", show_default=True,
+              help="Machine name (bundled) or machine file path: its dialect picks the firmware.")
+@click.option("--pty", "pty_path", required=True, type=click.Path(dir_okay=False),
+              help="Path of the symlink to the pseudo-terminal; open it as a serial port.")
+@click.option("--record", default=None, type=click.Path(dir_okay=False),
+              help="Write the world's record (wraps, collisions) to this JSON file.")
+@click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
+@click.option("--faults", default=None, help="Faults to inject: kind@N,... (disconnect, reset, power, "
+                                             "garble, drop-ok, error; N counts received lines).")
+def simulate(machine_name, pty_path, record, realtime, faults):
+    """Serve the simulated machine on a pseudo-terminal until Ctrl-C."""
+    from firmware_protocol.emulators.factory import build_emulator
+    from firmware_protocol.machine import load_machine
+    from firmware_protocol.pty import PtyServer
+    machine = load_machine(machine_name)
+    try:
+        emulator, _world = build_emulator(machine, record=record, faults=faults)
+    except ValueError as exc:
+        raise BadInput(f"--faults {faults!r}: {exc}") from None
+    except OSError as exc:
+        raise BadInput(f"--record {record!r}: {exc.strerror or exc}") from None
+    try:
+        server = PtyServer(emulator, pty_path, realtime=realtime).start()
+    except OSError as exc:
+        raise BadInput(f"--pty {pty_path!r}: {exc.strerror or exc}; expected a path in a writable "
+                       "folder") from None
+    click.echo(f"simulating {machine.name} on {pty_path} (-> {server.slave_name}); Ctrl-C to stop")
+    try:
+        server.serve()
+    finally:
+        server.close()
