@@ -64,6 +64,142 @@ def main(argv=None):
 # Each area adds its commands below its own marker; keep each command thin.
 
 # == planner commands (plan, render, score) ==
+# Heavy modules (numpy, scipy, PIL) are imported inside the commands: startup counts.
+
+class _Lines(click.ParamType):
+    name = "N|auto"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) or str(value).strip().lower() == "auto":
+            return value if isinstance(value, int) else "auto"
+        try:
+            return int(value)
+        except ValueError:
+            self.fail(f"{value!r} is not a whole number or 'auto'", param, ctx)
+
+
+@cli.command("plan")
+@click.argument("image", type=click.Path(dir_okay=True, path_type=str))
+@click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str),
+              help="Plan file to write (JSON).")
+@click.option("--preview", type=click.Path(path_type=str), default=None,
+              help="Preview PNG to write [default: the plan's path with .png].")
+@click.option("--method", type=click.Choice(["fitness", "greedy"]), default="fitness", show_default=True,
+              help="fitness: the paper's method; greedy: the ThreadTone baseline.")
+@click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
+@click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
+@click.option("--machine", default=None, help="Take the pin count from this machine (name or TOML path).")
+@click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
+@click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
+@click.option("--start-pin", type=int, default=0, show_default=True)
+@click.option("--size", type=int, default=401, show_default=True, help="Working size in pixels.")
+@click.option("--lines", type=_Lines(), default="auto", show_default=True,
+              help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
+@click.option("--importance", type=click.Path(path_type=str), default=None,
+              help="Mask PNG of the picture's size: white = important (weight 2).")
+@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default="decolor", show_default=True,
+              help="Colour to gray: contrast-preserving decolorization or plain luminance.")
+@click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
+@click.option("--beta", type=float, default=5.0, show_default=True, help="Short-chord penalty.")
+@click.option("--gamma", type=float, default=10.0, show_default=True, help="Edge-direction penalty.")
+@click.option("-T", "--sharpness", "T", type=float, default=30.0, show_default=True,
+              help="T of tanh(f / T): larger spreads chords out.")
+@click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
+@click.option("--iterations", type=int, default=40, show_default=True, help="LSQR iteration limit.")
+@click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
+def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame, crop, start_pin, size, lines,
+             importance, gray, alpha, beta, gamma, T, epsilon, iterations, no_cache):
+    """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
+    import os
+
+    from ._files import check_output_path, write_atomic
+    from .planner.build import plan_picture
+    from .planner.image import parse_crop
+    from .planner.plan_file import write_plan
+    from .planner.render import draw, png_bytes
+
+    if machine is not None:
+        from firmware_protocol.machine import load_machine
+
+        ring = load_machine(machine).pins
+        if pins is not None and pins != ring:
+            raise BadInput(f"--pins {pins} differs from machine {machine!r} with {ring} pins; give one of them")
+        pins = ring
+    pins = 300 if pins is None else pins
+    preview = preview or os.path.splitext(output)[0] + ".png"
+    check_output_path(output, what="plan")
+    check_output_path(preview, what="preview")
+    for out, what in ((output, "plan"), (preview, "preview")):
+        for src, name in ((image, "picture"), (importance, "mask")):
+            if src and os.path.exists(out) and os.path.exists(src) and os.path.samefile(out, src):
+                raise BadInput(f"{what} path {out!r} is the {name} itself; expected another file")
+    if os.path.abspath(output) == os.path.abspath(preview):
+        raise BadInput(f"plan and preview are the same file {output!r}; expected two paths")
+    if lines != "auto" and lines <= 0:
+        raise BadInput(f"--lines {lines}; expected a positive number or auto")
+    p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
+                     lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
+                     importance=importance, gray=gray, alpha=alpha, beta=beta, gamma=gamma, T=T,
+                     epsilon=epsilon, iterations=iterations, cache=not no_cache)
+    if machine is not None:
+        p.parameters["machine"] = machine
+    png = png_bytes(draw(p, size=1001))
+    write_plan(p, output)
+    write_atomic(preview, png)
+    s = p.stats
+    kind = "disconnected " if not p.connected else ""
+    click.echo(f"{kind}{p.method}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
+               f"diameters, {s['seconds']:.2f} s -> {output} (preview {preview})")
+
+
+@cli.command("render")
+@click.argument("plan", type=click.Path(path_type=str))
+@click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str), help="PNG to write.")
+@click.option("--size", type=int, default=1001, show_default=True, help="Side of the drawing in pixels.")
+def render_cmd(plan, output, size):
+    """Draw PLAN as black 1-pixel threads on white."""
+    from ._files import check_output_path, write_atomic
+    from .planner.plan_file import read_plan
+    from .planner.render import draw, png_bytes
+
+    if not 16 <= size <= 8001:
+        raise BadInput(f"--size {size}; expected 16..8001 pixels")
+    check_output_path(output, what="drawing")
+    p = read_plan(plan)
+    write_atomic(output, png_bytes(draw(p, size=size)))
+    click.echo(f"{len(p.chord_list())} chords drawn at {size} x {size} -> {output}")
+
+
+@cli.command("score")
+@click.argument("plan", type=click.Path(path_type=str))
+@click.argument("image", required=False, type=click.Path(path_type=str))
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+def score_cmd(plan, image, as_json):
+    """SSIM of PLAN against IMAGE (default: the plan's source), as in the paper's section 4.1."""
+    import json
+
+    from .planner.image import read_picture, sha256_file
+    from .planner.plan_file import read_plan
+    from .planner.render import BLUR_SIGMA, score
+
+    p = read_plan(plan)
+    image = image or p.source.get("path")
+    if not image:
+        raise BadInput(f"plan {plan!r} names no source picture; expected an IMAGE argument")
+    gray = p.parameters.get("gray_requested", "decolor")
+    pic = read_picture(image, size=401, crop=p.crop, gray=gray if gray in ("decolor", "luminance") else "decolor")
+    if p.source.get("sha256") and p.source["sha256"] != pic.source["sha256"]:
+        log.warning("%s is not the picture the plan was made from (sha256 differs)", image)
+    r = score(p, pic.gray)
+    if as_json:
+        click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "connected": p.connected,
+                               "lines": r["lines"], "ssim": round(r["ssim"], 4),
+                               "ssim_blurred": round(r["ssim_blurred"], 4), "blur_sigma": BLUR_SIGMA}))
+    else:
+        click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} "
+                   f"{p.method}{'' if p.connected else ' (disconnected)'}\n{'lines':<10} {r['lines']}\n"
+                   f"{'SSIM':<10} {r['ssim']:.4f}\n{'blurred':<10} {r['ssim_blurred']:.4f}")
+
 
 # == machine commands (machines, gcode, estimate) ==
 

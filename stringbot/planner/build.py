@@ -27,7 +27,8 @@ __all__ = ["plan_picture", "auto_lines", "check_knobs", "DEFAULTS", "MAX_PINS"]
 
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").
 DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
-            "iterations": 40, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3}
+            "iterations": 40, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
+            "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
 MIN_SIZE, MAX_SIZE = 32, 2001
 MAX_LINES = 100_000
@@ -128,11 +129,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     if method == "greedy":
         from .greedy import greedy_sequence
 
-        params.update(weight=DEFAULTS["greedy_weight"], width=DEFAULTS["greedy_width"],
-                      min_loop=DEFAULTS["greedy_min_loop"])
-        seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin,
-                              weight=DEFAULTS["greedy_weight"], width=DEFAULTS["greedy_width"],
-                              min_loop=DEFAULTS["greedy_min_loop"])
+        gk = {"weight": DEFAULTS["greedy_weight"], "width": DEFAULTS["greedy_width"],
+              "min_loop": DEFAULTS["greedy_min_loop"], "reference_radius": DEFAULTS["greedy_reference_radius"]}
+        params.update(gk, weight_at_size=round(gk["weight"] * (size - 1) / 2 / gk["reference_radius"], 4))
+        seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
         from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
         from .sampling import fitness_table, sample_connected, sample_disconnected
@@ -160,6 +160,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         chord_list = list(zip(seq[:-1], seq[1:]))
     else:
         chord_list = chords
+    if not chord_list:
+        raise BadInput(f"{method} found nothing to draw: the picture is blank inside the frame; "
+                       "expected a picture with some dark parts")
     stats.update(lines=len(chord_list), thread_diameters=round(thread_length(space.pin_xy, chord_list), 3),
                  chords_seconds=round(t_chords - t0, 3), seconds=round(time.perf_counter() - t0, 3))
     if len(chord_list) < k:

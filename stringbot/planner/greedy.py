@@ -6,6 +6,14 @@ picture is lowered by ``weight`` (15 of 255) along it on a ``width``-pixel
 line (3), and the next step starts from its far pin.  The last ``min_loop``
 pins of the sequence (3, the current one included) are never gone back to.
 The run stops early when no chord has a positive sum.
+
+ThreadTone works on a picture of radius ``reference_radius`` = 500 pixels
+(its ``imgRadius``); its 15-on-3-pixels is the darkness of one thread *at
+that scale*.  On a working picture of radius ``R`` the removed line keeps
+its 3-pixel width and its weight is scaled by ``R / 500``, so that one
+thread removes the same share of the picture as in ThreadTone (at 401 px,
+6 of 255).  Without this, a thread would remove 2.5 times too much darkness
+and the run would stop after about 70 % of the lines.
 """
 
 import logging
@@ -58,7 +66,7 @@ def _thick(space, size, indptr, indices, chord, width):
 
 
 def greedy_sequence(space, size, indptr, indices, gray, mask, lines, *, start_pin=0,
-                    weight=15.0, width=3, min_loop=3):
+                    weight=15.0, width=3, min_loop=3, reference_radius=500.0):
     """ThreadTone's greedy pin sequence.
 
     Parameters
@@ -75,16 +83,22 @@ def greedy_sequence(space, size, indptr, indices, gray, mask, lines, *, start_pi
         Upper bound on the number of chords.
     start_pin : int
     weight : float
-        Darkness removed along a drawn chord.
+        Darkness removed along a drawn chord, at ``reference_radius``.
     width : int
         Width in pixels of the removed line.
     min_loop : int
         The last ``min_loop`` pins are excluded.
+    reference_radius : float or None
+        Picture radius at which ``weight`` holds (ThreadTone's 500); the
+        weight used is ``weight * R / reference_radius`` with ``R = (size - 1) / 2``.
+        None: use ``weight`` as it is.
 
     Returns
     -------
     list of int
     """
+    if reference_radius:
+        weight = weight * ((size - 1) / 2.0) / float(reference_radius)
     work = np.where(mask, 255.0 - np.asarray(gray, dtype=np.float32), 0.0).astype(np.float32).ravel()
     pins = _PinChords(space, indptr, indices)
     seq = [int(start_pin)]
