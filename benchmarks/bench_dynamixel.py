@@ -3,17 +3,18 @@
     python benchmarks/bench_dynamixel.py [--pins-wound 300] [--plan plan.json] [--machine dynamixel-ring]
 
 Every byte crosses a pseudo-terminal: hooking steps -> DynamixelLink ->
-dynamixel_sdk -> pty -> DynamixelEmulator (fast mode: virtual time) -> World.
+dynamixel_sdk -> pty -> DynamixelEmulator (fast mode: virtual time) -> World,
+the emulator in its own process as ``stringbot simulate`` runs it.
 Prints wall-clock pins per second, exchanges per pin, the machine time the
 winding would take at the machine file's profile (virtual seconds), and checks
 that the world's wraps equal the plan with no collision.
 """
 
 import argparse
+import multiprocessing
 import os
 import select
 import sys
-import threading
 import time
 import tty
 from pathlib import Path
@@ -30,34 +31,26 @@ from stringbot.motion import hook_steps  # noqa: E402
 from stringbot.planner import Plan, read_plan  # noqa: E402
 
 
-class _Pty:
-    """Serve an emulator on a pty in a thread (fast mode)."""
-
-    def __init__(self, emu):
-        self.emu = emu
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        self.path = os.ttyname(self.slave)
-        self._stop_r, self._stop_w = os.pipe()
-        self.thread = threading.Thread(target=self._run, daemon=True)
-        self.thread.start()
-
-    def _run(self):
-        while True:
-            ready, _, _ = select.select([self.master, self._stop_r], [], [], 0.005)
-            if self._stop_r in ready:
-                return
-            if self.master in ready:
-                self.emu.receive(os.read(self.master, 4096))
-            elif self.emu.busy:
-                self.emu.advance(None)
-            out = self.emu.transmit()
-            if out:
-                os.write(self.master, out)
-
-    def close(self):
-        os.write(self._stop_w, b"x")
-        self.thread.join(2)
+def _serve(machine_path, conn):
+    """Child process: the emulator on a pty (fast mode) until told to stop; sends its path, then
+    (virtual seconds, the world's record)."""
+    machine = load_machine(machine_path)
+    world = World(machine)
+    emu = DynamixelEmulator(machine, world=world)
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    conn.send(os.ttyname(slave))
+    while not conn.poll():
+        ready, _, _ = select.select([master], [], [], 0.005)
+        if ready:
+            emu.receive(os.read(master, 4096))
+        elif emu.busy:
+            emu.advance(None)
+        out = emu.transmit()
+        if out:
+            os.write(master, out)
+    conn.recv()
+    conn.send((emu.now, world.record()))
 
 
 def random_plan(n, pins, seed=7):
@@ -74,18 +67,13 @@ def random_plan(n, pins, seed=7):
                 source={"path": "-", "sha256": "0" * 64, "width": 2, "height": 2})
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--machine", default="dynamixel-ring")
-    ap.add_argument("--plan", help="a plan file (default: a random sequence)")
-    ap.add_argument("--pins-wound", type=int, default=300, help="pins of a random sequence")
-    args = ap.parse_args()
-    machine = load_machine(args.machine)
-    plan = read_plan(args.plan) if args.plan else random_plan(args.pins_wound, machine.pins)
-    world = World(machine)
-    emu = DynamixelEmulator(machine, world=world)
-    server = _Pty(emu)
-    link = DynamixelLink(machine, server.path)
+def wind_once(machine, plan):
+    """One winding on a fresh emulator in its own process (as `stringbot simulate` runs):
+    (wall seconds, steps, polls, virtual seconds, world record)."""
+    parent, child = multiprocessing.Pipe()
+    server = multiprocessing.Process(target=_serve, args=(machine.path, child), daemon=True)
+    server.start()
+    link = DynamixelLink(machine, parent.recv())
     try:
         link.connect()
         steps = hook_steps(plan, machine, start_ring_deg=link.prepare()[0])
@@ -96,16 +84,32 @@ def main():
         wall = time.perf_counter() - t0
     finally:
         link.close()
-        server.close()
-    n = len(steps)
-    ok = [w.pin for w in world.wraps] == list(plan.sequence) and not world.collisions
+        parent.send("stop")
+        virtual, record = parent.recv()
+        server.join(5)
+    return wall, len(steps), link.polls - polls0, virtual, record
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--machine", default="dynamixel-ring")
+    ap.add_argument("--plan", help="a plan file (default: a random sequence)")
+    ap.add_argument("--pins-wound", type=int, default=300, help="pins of a random sequence")
+    ap.add_argument("--repeat", type=int, default=3, help="runs (the median is reported)")
+    args = ap.parse_args()
+    machine = load_machine(args.machine)
+    plan = read_plan(args.plan) if args.plan else random_plan(args.pins_wound, machine.pins)
+    runs = sorted((wind_once(machine, plan) for _ in range(max(1, args.repeat))), key=lambda r: r[0])
+    wall, n, polls, virtual, world = runs[len(runs) // 2]
+    ok = all([w["pin"] for w in r[4]["wraps"]] == list(plan.sequence) and not r[4]["collisions"]
+             for r in runs)
     print(f"machine          {machine.name} ({len(plan.sequence)} pins wound, {plan.pins}-pin ring)")
-    print(f"wall clock       {wall:.2f} s  ->  {n / wall:.1f} pins/s through the SDK on the pty")
-    print(f"polls            {(link.polls - polls0) / n:.1f} sync reads per pin "
-          f"({(link.polls - polls0) / wall:.0f} exchanges/s)")
-    print(f"machine time     {emu.now:.0f} s virtual ({n / emu.now:.2f} pins/s at the profile)")
-    print(f"world            wraps == plan: {ok}; collisions: {len(world.collisions)}; "
-          f"ring travel {world.ring_travel_deg:.0f} deg")
+    print(f"wall clock       {wall:.2f} s median of {len(runs)}  ->  {n / wall:.1f} pins/s through the SDK "
+          f"on the pty (best {n / runs[0][0]:.1f}, worst {n / runs[-1][0]:.1f})")
+    print(f"polls            {polls / n:.1f} sync reads per pin ({polls / wall:.0f} exchanges/s)")
+    print(f"machine time     {virtual:.0f} s virtual ({n / virtual:.2f} pins/s at the profile)")
+    print(f"world            wraps == plan in every run: {ok}; collisions: {len(world['collisions'])}; "
+          f"ring travel {world['ring_travel_deg']:.0f} deg")
     return 0 if ok else 1
 
 
