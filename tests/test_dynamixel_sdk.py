@@ -11,7 +11,7 @@ import pytest
 
 from firmware_protocol import dynamixel as dx
 from firmware_protocol.emulators.dynamixel import DynamixelEmulator
-from firmware_protocol.machine import load_machine, machine_from_dict
+from firmware_protocol.machine import load_machine
 from firmware_protocol.world import World
 from stringbot.errors import BadInput, MachineFailure
 from stringbot.links.dynamixel import DynamixelLink
