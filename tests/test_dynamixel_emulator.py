@@ -34,6 +34,21 @@ def write(emu, sid, name, value):
     return status.error
 
 
+def settle(emu):
+    """Fast mode: poll Moving (as a host does) until no servo moves or the bus goes quiet."""
+    for _ in range(10_000):
+        states = []
+        for sid in (1, 2):
+            f = CT["Moving"]
+            got = exchange(emu, sid, I.READ, dx.to_bytes(f.address, 2) + dx.to_bytes(1, 2))
+            states.append(got[0].params[0] if got and isinstance(got[0], dx.Packet) and got[0].params else 0)
+            if not got:
+                return False
+        if not any(states):
+            return True
+    raise AssertionError("motion never ended")
+
+
 def test_ping_answers_with_model_and_firmware_exact_bytes(machine):
     emu = DynamixelEmulator(machine)
     emu.receive(bytes.fromhex("FF FF FD 00 01 03 00 01 19 4E"))
@@ -93,7 +108,9 @@ def test_motion_takes_profile_time_and_moving_reads_advance_the_clock(machine):
     write(emu, 1, "Profile Acceleration", 0)        # no ramp: exactly distance / speed
     write(emu, 1, "Torque Enable", 1)
     write(emu, 1, "Goal Position", 3 * 4096)        # 3 turns
-    assert emu.busy and emu.next_event_in() == pytest.approx(3 * 60 / (100 * 0.229))
+    # fast mode: motion time passes as the host polls, not when the transport idles
+    assert not emu.busy and emu.next_event_in() is None and emu.advance(None) == 0.0
+    assert emu._next_internal() == pytest.approx(3 * 60 / (100 * 0.229))
     assert read(emu, 1, "Moving") == 1               # each poll lets up to 0.25 s pass
     assert emu.now == pytest.approx(0.25)
     polls = 1
@@ -112,7 +129,7 @@ def test_trapezoid_takes_longer_than_cruise(machine):
     write(emu, 1, "Torque Enable", 1)
     write(emu, 1, "Goal Position", 4096)
     v, a = 100 * 0.229 / 60, 20 * 214.577 / 3600     # rev/s, rev/s^2
-    assert emu.next_event_in() == pytest.approx(1 / v + v / a)
+    assert emu._next_internal() == pytest.approx(1 / v + v / a)
 
 
 def test_extended_mode_is_multi_turn_and_reboot_rebases_to_one_turn(machine):
@@ -120,7 +137,7 @@ def test_extended_mode_is_multi_turn_and_reboot_rebases_to_one_turn(machine):
     write(emu, 1, "Operating Mode", 4)
     write(emu, 1, "Torque Enable", 1)
     write(emu, 1, "Goal Position", 5 * 4096 + 700)
-    emu.advance(None)
+    settle(emu)
     assert read(emu, 1, "Present Position") == 5 * 4096 + 700
     [status] = exchange(emu, 1, I.REBOOT)
     assert status.error == 0
@@ -139,8 +156,7 @@ def test_sync_write_and_sync_read_exact_exchange(machine):
         + bytes([2]) + dx.to_bytes(2300, 4)
     emu.receive(dx.encode_instruction(dx.BROADCAST_ID, I.SYNC_WRITE, params))
     assert emu.transmit() == b""                                   # sync write: no status
-    emu.advance(None)
-    emu.advance(None)
+    settle(emu)
     emu.receive(dx.encode_instruction(dx.BROADCAST_ID, I.SYNC_READ, bytes([132, 0, 4, 0, 1, 2])))
     assert emu.transmit() == dx.encode_status(1, 0, dx.to_bytes(900, 4)) + \
         dx.encode_status(2, 0, dx.to_bytes(2300, 4))
@@ -153,9 +169,9 @@ def test_world_follows_the_shafts(machine):
     for sid in (1, 2):
         write(emu, sid, "Torque Enable", 1)
     write(emu, 1, "Goal Position", 4096)                           # one servo turn: 90 ring degrees
-    emu.advance(None)
+    settle(emu)
     write(emu, 2, "Goal Position", 2300)                           # head out
-    emu.advance(None)
+    settle(emu)
     assert (world.ring_deg, world.head_mm) == (pytest.approx(90.0), pytest.approx(12.0))
 
 
@@ -167,11 +183,11 @@ def test_power_loss_stops_motion_silences_the_bus_then_torque_off_and_rebased(ma
     write(emu, 1, "Profile Velocity", 100)
     write(emu, 1, "Goal Position", 8 * 4096)
     duration = emu.ring.motion.duration
-    emu.advance(None)                                              # to the fault, halfway
+    assert settle(emu) is False                                    # polled up to the fault, halfway
     assert emu.now == pytest.approx(duration / 2)
     assert world.ring_deg == pytest.approx(360.0, abs=0.1)         # 4 servo turns = 1 ring turn
     assert exchange(emu, 1, I.PING) == []                          # no power, no answer
-    emu.advance(None)                                              # power back
+    assert emu.busy and emu.advance(None) == pytest.approx(2.0)    # the transport idles: power back
     assert read(emu, 1, "Torque Enable") == 0
     assert read(emu, 1, "Hardware Error Status") == 0
     assert 0 <= read(emu, 1, "Present Position") < 4096
@@ -183,7 +199,7 @@ def test_hardware_error_sets_alert_and_status_names_it(machine):
     emu = DynamixelEmulator(machine, faults="hardware_error@move=1:id=1:bits=0x20")
     write(emu, 1, "Torque Enable", 1)
     write(emu, 1, "Goal Position", 3000)
-    emu.advance(None)
+    settle(emu)
     f = CT["Hardware Error Status"]
     [status] = exchange(emu, 1, I.READ, dx.to_bytes(f.address, 2) + dx.to_bytes(1, 2))
     assert status.error == dx.ERRBIT_ALERT
@@ -200,7 +216,7 @@ def test_silent_servo_and_corrupted_packet(machine):
     assert isinstance(bad, dx.BadPacket)
     write(emu, 2, "Torque Enable", 1)
     write(emu, 2, "Goal Position", 2000)
-    emu.advance(None)
+    settle(emu)
     assert exchange(emu, 2, I.PING) == []
     assert len(exchange(emu, 1, I.PING)) == 1
 
@@ -220,7 +236,7 @@ def test_broadcast_reboot_is_silent_and_clear_resets_the_turn_count(machine):
     write(emu, 1, "Operating Mode", 4)
     write(emu, 1, "Torque Enable", 1)
     write(emu, 1, "Goal Position", -3 * 4096 + 100)
-    emu.advance(None)
+    settle(emu)
     [status] = exchange(emu, 1, I.CLEAR, dx.CLEAR_MULTI_TURN)
     assert status.error == 0x01                                   # Result Fail: torque is on
     write(emu, 1, "Torque Enable", 0)

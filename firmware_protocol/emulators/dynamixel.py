@@ -12,10 +12,13 @@ winding depends on it:
   Operating Mode changes; in Extended Position mode it is multi-turn otherwise.
 - A power loss stops the motion where it is; the servos answer nothing until
   the power is back, then come up with torque off and RAM items at defaults.
-- Status packets answer at once; motion takes virtual time.  In fast mode
-  (``realtime=False``) a read of Moving or Present Position while a servo moves
-  first runs the clock to the next event (the end of a motion, a fault), so a
-  polling host sees each motion finish quickly and in order.
+- Status packets answer at once; motion takes virtual time.  In realtime mode
+  the transport runs the clock (``advance(dt)``).  In fast mode motion time
+  passes only as the host polls: a read of Moving .. Present Position while a
+  servo moves first runs the clock to the next event (the end of a motion, a
+  fault), at most ``POLL_QUANTUM_S`` (a fraction of a servo turn), so a polling
+  host sees each motion finish quickly, in order, and has a recent position
+  when a fault strikes; ``advance(None)`` then only reaches a pending power-up.
 
 The physical shaft positions drive the world (``world.move(ring_deg, head_mm)``):
 ring degrees = shaft ticks / ticks_per_turn * 360 / gear_ratio; the head maps
@@ -331,6 +334,7 @@ class DynamixelEmulator(Emulator):
         self.machine = machine
         self.world = world
         self.realtime = realtime
+        self._clock_driven = realtime   # True once a transport runs the clock (advance(dt))
         self.faults = parse_faults(faults)
         c = lambda key: machine[f"controller.{key}"]
         self.tpt, self.gear = c("ticks_per_turn"), c("gear_ratio")
@@ -385,21 +389,33 @@ class DynamixelEmulator(Emulator):
 
     @property
     def busy(self):
-        return bool(self._out) or bool(self._events) or any(s.motion for s in self.servos.values())
+        return bool(self._out) or self.next_event_in() is not None
 
-    def next_event_in(self):
+    def _moving(self):
+        return any(s.motion for s in self.servos.values())
+
+    def _next_internal(self):
+        """Virtual seconds to the next motion end or fault action, or None."""
         times = [t for t, *_ in self._events] + [s.motion.end for s in self.servos.values() if s.motion]
         return max(0.0, min(times) - self.now) if times else None
 
+    def next_event_in(self):
+        """Realtime: the next motion end or fault.  Fast mode: motion (and the faults due
+        during it) advance only as the host polls, so only a pending power-up counts."""
+        if self._clock_driven or not self._moving():
+            return self._next_internal()
+        return None
+
     def advance(self, dt=None):
+        """Run the clock ``dt`` seconds (the transport drives a realtime clock: from then on
+        polls no longer advance it), or (None) to the next event of :meth:`next_event_in`."""
+        if dt is not None and dt > 0:
+            self._clock_driven = True
+        step = self.next_event_in() if dt is None else max(0.0, dt)
+        return 0.0 if step is None else self._run_to(self.now + step)
+
+    def _run_to(self, target):
         start = self.now
-        if dt is None:
-            step = self.next_event_in()
-            if step is None:
-                return 0.0
-            target = self.now + step
-        else:
-            target = self.now + max(0.0, dt)
         while True:
             due = [e for e in self._events if e[0] <= target]
             if not due:
@@ -455,11 +471,12 @@ class DynamixelEmulator(Emulator):
         return True
 
     def _poll(self, address, length):
-        """Fast mode: a host polling motion state sees time pass up to the next event."""
-        if self.realtime or address + length <= POLLED.start or address >= POLLED.stop:
+        """Fast mode: a host polling motion state sees time pass, up to the next event."""
+        if self._clock_driven or address + length <= POLLED.start or address >= POLLED.stop:
             return
-        if any(s.motion for s in self.servos.values()) or self._events:
-            self.advance(min(self.next_event_in(), POLL_QUANTUM_S))
+        step = self._next_internal()
+        if step is not None and self._moving():
+            self._run_to(self.now + min(step, POLL_QUANTUM_S))
 
     def _handle(self, p):
         if isinstance(p, dx.BadPacket):
