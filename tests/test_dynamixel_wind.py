@@ -213,3 +213,35 @@ def test_the_wind_loop_drives_the_servos_through_the_pty(machine, tmp_path):
     assert [p.done for p in seen] == list(range(1, len(plan.sequence) + 1))
     assert read_journal(result.journal).finished
     assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
+
+
+def test_stringbot_simulate_serves_the_sdk_through_port_path(machine, tmp_path):
+    """`stringbot simulate --machine dynamixel-ring --pty PATH` in its own process; the SDK opens PATH."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from stringbot.planner import write_plan
+    from stringbot.winding import load_job, wind_plan
+
+    plan = make_plan(PLANS["long jumps"])
+    write_plan(plan, tmp_path / "plan.json")
+    pty, record = tmp_path / "dxl", tmp_path / "world.json"
+    sim = subprocess.Popen([sys.executable, "-c", "from stringbot.cli import main; main()", "simulate",
+                            "--machine", "dynamixel-ring", "--pty", str(pty), "--record", str(record)],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(200):
+            if os.path.islink(pty):
+                break
+            time.sleep(0.05)
+        result = wind_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=str(pty)))
+    finally:
+        sim.send_signal(signal.SIGINT)
+        out, err = sim.communicate(timeout=10)
+    assert result.steps_done == len(plan.sequence), err
+    doc = json.loads(record.read_text())
+    assert [w["pin"] for w in doc["wraps"]] == plan.sequence and doc["collisions"] == []
