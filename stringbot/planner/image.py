@@ -34,6 +34,7 @@ MAX_PIXELS = 1_000_000_000      # refuse larger pictures outright
 MAX_DECODED_BYTES = 1_200_000_000  # PIL's decoded image must fit in this
 MIN_SIDE = 8
 _STRIP_ROWS = 512
+_STRIP_PIXELS = 8_000_000  # a strip of the crop, converted, stays under ~32 MB
 
 
 class Picture:
@@ -164,7 +165,7 @@ def _cut(im, box, size):
     out_w = -(-(ix1 - ix0) // factor)
     out_h = -(-(iy1 - iy0) // factor)
     canvas = None
-    rows = _STRIP_ROWS * factor
+    rows = max(factor, min(_STRIP_ROWS * factor, _STRIP_PIXELS // max(1, ix1 - ix0) // factor * factor))
     for sy in range(iy0, iy1, rows):
         ey = min(sy + rows, iy1)
         strip = _to_8bit(im.crop((ix0, sy, ix1, ey)))

@@ -1,0 +1,219 @@
+"""`stringbot plan`, `render` and `score` through the real entry point (a subprocess).
+
+Bad input must give exit 2, one line on stderr naming the problem, no
+traceback, and leave every file already on disk as it was.
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from stringbot.planner import read_plan
+
+SMALL = ["--pins", "60", "--size", "101"]
+
+
+def run(*args, cwd=None, env=None):
+    e = dict(os.environ)
+    e.update(env or {})
+    p = subprocess.run([sys.executable, "-c", "from stringbot.cli import main; main()", *map(str, args)],
+                       capture_output=True, text=True, cwd=cwd, env=e, timeout=120)
+    return p.returncode, p.stdout, p.stderr
+
+
+@pytest.fixture(autouse=True)
+def private_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("STRINGBOT_CACHE", str(tmp_path / "cache"))
+
+
+@pytest.fixture
+def picture(tmp_path):
+    y, x = np.mgrid[:120, :120]
+    g = np.where((x - 60) ** 2 + (y - 50) ** 2 < 30 ** 2, 30, 220).astype(np.uint8)
+    path = tmp_path / "pic.png"
+    Image.fromarray(g).save(path)
+    return path
+
+
+def one_error_line(code, err, words):
+    assert code == 2, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("stringbot: error:") and "Traceback" not in err
+    assert words in lines[0], lines[0]
+
+
+def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
+    out = tmp_path / "p.json"
+    code, stdout, err = run("plan", picture, "-o", out, *SMALL, "--lines", "80", "--start-pin", "5")
+    assert code == 0, err
+    plan = read_plan(out)
+    assert plan.pins == 60 and plan.sequence[0] == 5 and len(plan.sequence) == 81
+    assert plan.method == "fitness" and plan.connected
+    assert plan.source["path"] == str(picture) and plan.source["width"] == 120
+    for key in ("pins", "frame", "crop", "start_pin", "size", "lines", "alpha", "beta", "gamma", "T",
+                "epsilon", "iterations", "gray", "importance", "disconnected"):
+        assert key in plan.parameters, key
+    assert {"lines", "thread_diameters", "seconds"} <= set(plan.stats)
+    preview = Image.open(tmp_path / "p.png")
+    assert preview.size == (1001, 1001)
+    line = stdout.strip()
+    assert "\n" not in line
+    for part in ("fitness", "60 pins", "80 lines", "diameters", f"{plan.stats['thread_diameters']:.1f}", " s "):
+        assert part in line, line
+
+
+def test_greedy_square_crop_and_preview_path(tmp_path, picture):
+    out, prev = tmp_path / "g.json", tmp_path / "view.png"
+    code, stdout, err = run("plan", picture, "-o", out, "--preview", prev, "--method", "greedy", "--frame",
+                            "square", "--crop", "60,50,40", "--lines", "50", *SMALL)
+    assert code == 0, err
+    plan = read_plan(out)
+    assert plan.method == "greedy" and plan.frame == "square"
+    assert plan.crop == {"cx": 60.0, "cy": 50.0, "r": 40.0}
+    assert prev.is_file() and not (tmp_path / "g.png").exists()
+    assert stdout.startswith("greedy: 60 pins")
+
+
+def test_disconnected_plan_renders_and_scores(tmp_path, picture):
+    out = tmp_path / "d.json"
+    code, _, err = run("plan", picture, "-o", out, "--disconnected", "--lines", "60", *SMALL)
+    assert code == 0, err
+    doc = json.loads(out.read_text())
+    assert doc["connected"] is False and len(doc["chords"]) == 60 and doc["sequence"] == []
+    code, stdout, err = run("render", out, "-o", tmp_path / "r.png", "--size", "301")
+    assert code == 0, err
+    assert Image.open(tmp_path / "r.png").size == (301, 301)
+    code, stdout, err = run("score", out, "--json")
+    assert code == 0, err
+    s = json.loads(stdout)
+    assert s["connected"] is False and 0 < s["ssim"] < 1 and 0 < s["ssim_blurred"] < 1
+
+
+def test_score_table_and_json_agree(tmp_path, picture):
+    out = tmp_path / "p.json"
+    assert run("plan", picture, "-o", out, "--lines", "60", *SMALL)[0] == 0
+    code, table, _ = run("score", out, picture)
+    assert code == 0
+    code, js, _ = run("score", out, "--json")
+    s = json.loads(js)
+    assert f"{s['ssim']:.4f}" in table and f"{s['ssim_blurred']:.4f}" in table
+    # a drawing of the picture scores better than the same drawing against its negative
+    neg = tmp_path / "neg.png"
+    Image.fromarray(255 - np.asarray(Image.open(picture))).save(neg)
+    worse = json.loads(run("score", out, neg, "--json")[1])
+    assert worse["ssim_blurred"] < s["ssim_blurred"]
+
+
+def test_machine_gives_the_pin_count(tmp_path, picture):
+    from firmware_protocol.machine import load_machine
+
+    ring = load_machine("grbl-ring").pins
+    out = tmp_path / "m.json"
+    code, _, err = run("plan", picture, "-o", out, "--machine", "grbl-ring", "--size", "201", "--lines", "30")
+    assert code == 0, err
+    assert read_plan(out).pins == ring
+    code, _, err = run("plan", picture, "-o", out, "--machine", "grbl-ring", "--pins", str(ring + 1))
+    one_error_line(code, err, "differs from machine")
+
+
+# ---- bad input: one line, exit 2, nothing overwritten ------------------------------------------
+
+def bad_pictures(tmp_path):
+    """name -> path of a picture that cannot be planned."""
+    out = {}
+    (tmp_path / "empty.png").write_bytes(b"")
+    out["empty file"] = tmp_path / "empty.png"
+    (tmp_path / "text.png").write_text("not an image")
+    out["not a picture"] = tmp_path / "text.png"
+    Image.new("L", (1, 1)).save(tmp_path / "one.png")
+    out["1 x 1"] = tmp_path / "one.png"
+    Image.new("RGB", (200, 200), (10, 200, 30)).save(tmp_path / "full.jpg", quality=90)
+    data = (tmp_path / "full.jpg").read_bytes()
+    (tmp_path / "cut.jpg").write_bytes(data[: len(data) // 3])
+    out["truncated"] = tmp_path / "cut.jpg"
+    out["is a folder"] = tmp_path
+    out["does not exist"] = tmp_path / "missing.png"
+    return out
+
+
+@pytest.mark.parametrize("which", ["empty file", "not a picture", "1 x 1", "truncated", "is a folder",
+                                   "does not exist"])
+def test_bad_pictures(tmp_path, which):
+    path = bad_pictures(tmp_path)[which]
+    out = tmp_path / "old.json"
+    out.write_text("old plan")
+    code, _, err = run("plan", path, "-o", out, *SMALL)
+    one_error_line(code, err, {"truncated": "runcated"}.get(which, which))
+    assert out.read_text() == "old plan"
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--pins", "2", "--size", "101"], "--pins 2"),
+    (["--pins", "100000"], "--pins 100000"),
+    (["--lines", "0"], "--lines 0"),
+    (["--lines", "-4"], "--lines -4"),
+    (["--lines", "many"], "'many'"),
+    (["--size", "3"], "--size 3"),
+    (["--crop", "1,2"], "--crop"),
+    (["--crop", "900,900,10"], "outside"),
+    (["--start-pin", "400"], "--start-pin"),
+    (["-T", "0"], "--T 0"),
+    (["--method", "greedy", "--disconnected"], "--disconnected"),
+])
+def test_bad_options(tmp_path, picture, args, words):
+    out = tmp_path / "p.json"
+    out.write_text("old plan")
+    code, _, err = run("plan", picture, "-o", out, *args)
+    one_error_line(code, err, words)
+    assert out.read_text() == "old plan"
+
+
+def test_bad_outputs(tmp_path, picture):
+    code, _, err = run("plan", picture, "-o", tmp_path / "nope" / "p.json", *SMALL)
+    one_error_line(code, err, "does not exist")
+    code, _, err = run("plan", picture, "-o", tmp_path, *SMALL)
+    one_error_line(code, err, "is a folder")
+    (tmp_path / "keep.json").write_text("old plan")
+    code, _, err = run("plan", picture, "-o", tmp_path / "keep.json", "--preview", tmp_path / "no" / "x.png", *SMALL)
+    one_error_line(code, err, "does not exist")
+    assert (tmp_path / "keep.json").read_text() == "old plan"
+    before = picture.read_bytes()
+    code, _, err = run("plan", picture, "-o", tmp_path / "p.json", "--preview", picture, *SMALL)
+    one_error_line(code, err, "is the picture itself")
+    assert picture.read_bytes() == before
+
+
+def test_mask_of_another_size(tmp_path, picture):
+    Image.new("L", (50, 50), 255).save(tmp_path / "mask.png")
+    code, _, err = run("plan", picture, "-o", tmp_path / "p.json", "--importance", tmp_path / "mask.png", *SMALL)
+    one_error_line(code, err, "expected the picture's size 120 x 120")
+    assert not (tmp_path / "p.json").exists()
+
+
+@pytest.mark.parametrize("content, words", [
+    ("{not json", "is not JSON"),
+    ('{"format": "stringbot-plan", "version": 1}', "missing field"),
+    ("[1, 2]", "expected a JSON object"),
+])
+def test_render_and_score_refuse_broken_plans(tmp_path, content, words):
+    plan = tmp_path / "bad.json"
+    plan.write_text(content)
+    (tmp_path / "out.png").write_bytes(b"old")
+    code, _, err = run("render", plan, "-o", tmp_path / "out.png")
+    one_error_line(code, err, words)
+    assert (tmp_path / "out.png").read_bytes() == b"old"
+    code, _, err = run("score", plan)
+    one_error_line(code, err, words)
+
+
+def test_lazy_imports_keep_startup_light():
+    code = ("import sys; import stringbot.cli; heavy = [m for m in ('numpy', 'scipy', 'PIL', 'skimage') "
+            "if m in sys.modules]; print(','.join(heavy))")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0 and p.stdout.strip() == "", p.stdout + p.stderr
