@@ -11,12 +11,13 @@ that the world's wraps equal the plan with no collision.
 """
 
 import argparse
+import logging
 import multiprocessing
 import os
-import select
 import sys
+import tempfile
+import threading
 import time
-import tty
 from pathlib import Path
 
 import numpy as np
@@ -25,31 +26,27 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from firmware_protocol.emulators.dynamixel import DynamixelEmulator  # noqa: E402
 from firmware_protocol.machine import load_machine  # noqa: E402
+from firmware_protocol.pty import PtyServer  # noqa: E402
 from firmware_protocol.world import World  # noqa: E402
 from stringbot.links.dynamixel import DynamixelLink  # noqa: E402
 from stringbot.motion import hook_steps  # noqa: E402
 from stringbot.planner import Plan, read_plan  # noqa: E402
 
 
-def _serve(machine_path, conn):
-    """Child process: the emulator on a pty (fast mode) until told to stop; sends its path, then
-    (virtual seconds, the world's record)."""
+def _serve(machine_path, path, conn):
+    """Child process: ``stringbot simulate``'s pty server with the emulator (fast mode) until told
+    to stop; then sends (virtual seconds, the world's record)."""
     machine = load_machine(machine_path)
     world = World(machine)
     emu = DynamixelEmulator(machine, world=world)
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    conn.send(os.ttyname(slave))
-    while not conn.poll():
-        ready, _, _ = select.select([master], [], [], 0.005)
-        if ready:
-            emu.receive(os.read(master, 4096))
-        elif emu.busy:
-            emu.advance(None)
-        out = emu.transmit()
-        if out:
-            os.write(master, out)
-    conn.recv()
+    server = PtyServer(emu, path).start()
+    stop = threading.Event()
+    conn.send("ready")
+    threading.Thread(target=lambda: (conn.recv(), stop.set()), daemon=True).start()
+    try:
+        server.serve(stop)
+    finally:
+        server.close()
     conn.send((emu.now, world.record()))
 
 
@@ -67,13 +64,15 @@ def random_plan(n, pins, seed=7):
                 source={"path": "-", "sha256": "0" * 64, "width": 2, "height": 2})
 
 
-def wind_once(machine, plan):
+def wind_once(machine, plan, tmp):
     """One winding on a fresh emulator in its own process (as `stringbot simulate` runs):
     (wall seconds, steps, polls, virtual seconds, world record)."""
     parent, child = multiprocessing.Pipe()
-    server = multiprocessing.Process(target=_serve, args=(machine.path, child), daemon=True)
+    path = os.path.join(tmp, "dxl")
+    server = multiprocessing.Process(target=_serve, args=(machine.path, path, child), daemon=True)
     server.start()
-    link = DynamixelLink(machine, parent.recv())
+    parent.recv()
+    link = DynamixelLink(machine, path)
     try:
         link.connect()
         steps = hook_steps(plan, machine, start_ring_deg=link.prepare()[0])
@@ -91,6 +90,7 @@ def wind_once(machine, plan):
 
 
 def main():
+    logging.basicConfig(level=logging.ERROR)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--machine", default="dynamixel-ring")
     ap.add_argument("--plan", help="a plan file (default: a random sequence)")
@@ -99,7 +99,8 @@ def main():
     args = ap.parse_args()
     machine = load_machine(args.machine)
     plan = read_plan(args.plan) if args.plan else random_plan(args.pins_wound, machine.pins)
-    runs = sorted((wind_once(machine, plan) for _ in range(max(1, args.repeat))), key=lambda r: r[0])
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = sorted((wind_once(machine, plan, tmp) for _ in range(max(1, args.repeat))), key=lambda r: r[0])
     wall, n, polls, virtual, world = runs[len(runs) // 2]
     ok = all([w["pin"] for w in r[4]["wraps"]] == list(plan.sequence) and not r[4]["collisions"]
              for r in runs)

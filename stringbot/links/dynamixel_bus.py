@@ -118,8 +118,9 @@ class ServoBus:
             if result == sdk.COMM_SUCCESS:
                 return out
             self.retried += 1
-            log.warning("%s: %s %s (attempt %d of %d)", self.name(servo_id), what, comm_name(result),
-                        attempt + 1, self.retries + 1)
+            # a first ping may go unanswered while a port settles: not worth a warning
+            log.log(logging.INFO if what == "ping" else logging.WARNING, "%s: %s %s (attempt %d of %d)",
+                    self.name(servo_id), what, comm_name(result), attempt + 1, self.retries + 1)
         raise self.comm_failure(servo_id, what, result)
 
     def comm_failure(self, servo_id, what, result):
