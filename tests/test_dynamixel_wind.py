@@ -245,3 +245,29 @@ def test_stringbot_simulate_serves_the_sdk_through_port_path(machine, tmp_path):
     assert result.steps_done == len(plan.sequence), err
     doc = json.loads(record.read_text())
     assert [w["pin"] for w in doc["wraps"]] == plan.sequence and doc["collisions"] == []
+
+
+def test_ctrl_c_through_the_wind_loop_holds_and_journals_the_position(machine, tmp_path):
+    from stringbot.errors import Interrupted
+    from stringbot.planner import write_plan
+    from stringbot.winding import load_job, read_journal, wind_plan
+
+    plan = make_plan(PLANS["random"])
+    write_plan(plan, tmp_path / "plan.json")
+    server, emu, world = serve(machine)
+
+    def progress(p):
+        if p.done == 5:
+            raise KeyboardInterrupt
+
+    try:
+        with pytest.raises(Interrupted, match="5 of 40 steps done"):
+            wind_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=server.path), progress=progress)
+    finally:
+        server.close()
+    state = read_journal(tmp_path / "plan.json.journal")
+    stop = state.last_stop
+    assert state.next_step == 5 and stop["reason"] == "interrupted"
+    assert stop["position"] == [pytest.approx(world.ring_deg, abs=0.03), pytest.approx(world.head_mm, abs=0.03)]
+    assert [w.pin for w in world.wraps] == plan.sequence[:5] and not world.head_out
+    assert emu.ring.motion is None and emu.ring.get("Torque Enable") == 1    # held, thread tensioned
