@@ -92,6 +92,7 @@ class DynamixelLink:
         self.where = (None, None)   # (step, pin) running, for messages
         self._move_index = None
         self._step_index = None
+        self._velocity_limit = None   # the slowest servo's Velocity Limit (44), read by prepare
         self.info = None
         self._executed = []         # steps executed but not yet handed to the wind loop
         self._check_travel()
@@ -208,6 +209,7 @@ class DynamixelLink:
                 self.bus.reboot(servo_id)
                 time.sleep(0.1)
             limit = self._read(servo_id, "Velocity Limit")
+            self._velocity_limit = min(self._velocity_limit or limit, limit) or 1023
             if self.machine["controller.profile_velocity"] > limit:
                 raise BadInput(f"{self.machine.path}: controller.profile_velocity = "
                                f"{self.machine['controller.profile_velocity']} exceeds the {self._name(servo_id)}'s "
@@ -401,7 +403,7 @@ class DynamixelLink:
         self.state = LinkState.READY
 
     def _estimate_s(self, distance_ticks):
-        v = (self.machine["controller.profile_velocity"] or 1023) * 0.229 / 60.0 * self.tpt
+        v = (self.machine["controller.profile_velocity"] or self._velocity_limit or 1023) * 0.229 / 60.0 * self.tpt
         a_units = self.machine["controller.profile_acceleration"]
         ramp = v / (a_units * 214.577 / 3600.0 * self.tpt) if a_units else 0.0
         return distance_ticks / v + ramp
