@@ -51,6 +51,8 @@ def test_wound_through_the_sdk_the_world_wraps_the_plan(machine, plan_name):
     plan = make_plan(PLANS[plan_name])
     server, emu, world = serve(machine)
     link = DynamixelLink(machine, server.path)
+    moved = []
+    link.on_move = lambda step, k: moved.append((step.index, k))
     try:
         link.connect()
         start_ring, _ = link.prepare()
@@ -60,6 +62,7 @@ def test_wound_through_the_sdk_the_world_wraps_the_plan(machine, plan_name):
     finally:
         link.close()
         server.close()
+    assert moved == [(s.index, k) for s in steps for k in range(len(s.moves))]
     assert world.collisions == []
     assert [w.pin for w in world.wraps] == plan.sequence
     assert [w.direction for w in world.wraps] == [s.direction for s in steps]
@@ -93,6 +96,7 @@ def test_resume_after_a_servo_power_loss_is_exact(machine, fault):
         with pytest.raises(MachineFailure, match="lost torque") as failure:
             link.execute(steps, executed.append)
         stop = link.stop_point()            # what the journal keeps
+        assert link.position_lost
         link.close()
         assert stop["step_index"] == len(executed) and failure.value.step == len(executed) + 1
         assert stop["move"] is not None and 0 < len(executed) < len(steps) - 1

@@ -93,6 +93,8 @@ class DynamixelLink:
         self._move_index = None
         self._step_index = None
         self._velocity_limit = None   # the slowest servo's Velocity Limit (44), read by prepare
+        self.on_move = None           # the wind loop's on_move(step, move_index) after each arrival
+        self.position_lost = False    # a servo lost torque: positions may be re-based until resumed
         self.info = None
         self._executed = []         # steps executed but not yet handed to the wind loop
         self._check_travel()
@@ -231,6 +233,7 @@ class DynamixelLink:
             self._write(servo_id, "Torque Enable", 1)
             self.present[servo_id] = self.goal[servo_id] = self._read(servo_id, "Present Position")
         self.state = LinkState.READY
+        self.position_lost = False
         log.info("ready at ring %.3f deg, head %.3f mm", *self.position())
         return self.position()
 
@@ -359,6 +362,8 @@ class DynamixelLink:
         for k, move in enumerate(moves):
             self._move_index = first + k
             self.move_to(move.ring_deg, move.head_mm)
+            if self.on_move is not None:
+                self.on_move(step, first + k)
         self._move_index = len(step.moves)            # all arrived; not yet handed over
         if step.dwell_s:
             time.sleep(step.dwell_s)
@@ -425,6 +430,7 @@ class DynamixelLink:
                 if poll_field(data, "Moving") or abs(self.present[servo_id] - self.goal[servo_id]) > tol[servo_id]:
                     arrived = False
             if limp:
+                self.position_lost = True
                 moving = " and ".join(f"the {self.role[i]} from {start.get(i)} to {g} ticks"
                                       for i, g in changed.items())
                 raise self._fail(f"{' and '.join(limp)} lost torque (power loss or reboot?) while moving "
