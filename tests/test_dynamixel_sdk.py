@@ -252,7 +252,7 @@ def test_profile_velocity_above_the_velocity_limit_is_bad_input(machine):
 
 
 @pytest.mark.parametrize("bus", ["hardware@1:id=2:bits=0x04"], indirect=True)
-def test_unlock_reboots_a_faulted_servo_and_set_position_declares_the_ring(bus, machine):
+def test_unlock_set_position_and_home(bus, machine):
     server, emu, world = bus
     link = link_on(server, machine)
     try:
@@ -262,12 +262,15 @@ def test_unlock_reboots_a_faulted_servo_and_set_position_declares_the_ring(bus, 
         link.unlock()
         assert emu.head.get("Hardware Error Status") == 0 and emu.head.get("Torque Enable") == 0
         link.prepare(resume_at=link.position())
-        assert link.set_position(1234.5, link.position()[1])[0] == pytest.approx(1234.5, abs=0.03)
-        assert emu.ring.get("Torque Enable") == 1
-        link.move_to(1244.5, 0.0)                                # 10 degrees on from the declared place
+        # a declaration sets the turn count only: the encoder is exact within a turn
+        assert link.set_position(720.4, link.position()[1])[0] == pytest.approx(720.0, abs=0.03)
+        assert emu.ring.get("Torque Enable") == 1 and emu.ring.get("Homing Offset") == 8 * 4096
+        link.move_to(730.0, 0.0)                                 # 10 degrees on from the declared place
         assert world.ring_deg == pytest.approx(10.0, abs=0.03)
         with pytest.raises(MachineFailure, match="head servo reads"):
             link.set_position(0.0, 12.0)
+        assert link.home()[0] == pytest.approx(10.0, abs=0.03)   # turn count cleared; nothing moved
+        assert emu.ring.get("Homing Offset") == 0 and world.ring_deg == pytest.approx(10.0, abs=0.03)
     finally:
         link.close()
 

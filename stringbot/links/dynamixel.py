@@ -194,14 +194,14 @@ class DynamixelLink:
     def prepare(self, *, home=False, resume_at=None):
         """Torque off, modes, profile, torque on.  Returns the machine's position (ring_deg, head_mm).
 
-        Fresh (``resume_at`` None): the ring's turn count is cleared, so the ring
-        starts within one servo turn of 0.  Resuming: a ring servo that lost its
-        turn count (power loss, reboot) is re-based to the turn nearest ``resume_at``.
-        ``home`` is accepted for the wind loop's sake: the servos' absolute
-        encoders need no homing.
+        The ring's turn count is kept as the servo has it.  ``home``: clear it
+        (the ring is then within one servo turn of 0; see :meth:`home`).
+        ``resume_at=(ring_deg, head_mm)``: a ring servo that lost its turn count
+        (power loss, reboot) is re-based by whole turns to the position nearest
+        ``resume_at`` (see :meth:`set_position`).  Afterwards :attr:`position_lost`
+        is True when the ring came up without torque and neither happened: its
+        turn count may be wrong, and a resume must declare the position.
         """
-        if home:
-            log.info("Dynamixel servos have absolute encoders: nothing to home")
         ring, head = self.ids["ring"], self.ids["head"]
         for servo_id in (ring, head):
             bits = self._read(servo_id, "Hardware Error Status")
@@ -222,10 +222,9 @@ class DynamixelLink:
         for servo_id, mode in ((ring, dx.OperatingMode.EXTENDED_POSITION), (head, dx.OperatingMode.POSITION)):
             if self._read(servo_id, "Operating Mode") != mode:
                 self._write(servo_id, "Operating Mode", mode)
-        if resume_at is None:
-            self._write(ring, "Homing Offset", 0)
-            self.bus.clear_multi_turn(ring)
-        else:
+        if home:
+            self._clear_turns()
+        if resume_at is not None:
             self._rebase(resume_at[0], torque_was_on)
         for servo_id in (ring, head):
             self._write(servo_id, "Profile Acceleration", self.machine["controller.profile_acceleration"])
@@ -233,11 +232,18 @@ class DynamixelLink:
             self._write(servo_id, "Torque Enable", 1)
             self.present[servo_id] = self.goal[servo_id] = self._read(servo_id, "Present Position")
         self.state = LinkState.READY
-        self.position_lost = False
+        self.position_lost = not (torque_was_on or home or resume_at is not None)
         log.info("ready at ring %.3f deg, head %.3f mm", *self.position())
         return self.position()
 
+    def _clear_turns(self):
+        """Homing Offset 0 and the turn count cleared: the ring within one servo turn of 0 (torque off)."""
+        ring = self.ids["ring"]
+        self._write(ring, "Homing Offset", 0)
+        self.bus.clear_multi_turn(ring)
+
     def _rebase(self, hint_deg, torque_was_on):
+        """Add the whole servo turns that bring the ring nearest ``hint_deg`` (torque off)."""
         ring = self.ids["ring"]
         present = self._read(ring, "Present Position")
         want = self.ring_ticks(hint_deg)
@@ -254,7 +260,7 @@ class DynamixelLink:
         self._write(ring, "Homing Offset", offset)
         now = self._read(ring, "Present Position")
         log.warning("ring servo had lost its turn count (power loss or reboot): re-based by %d turns, "
-                    "%d -> %d ticks (journal: %d)", turns, present, now, want)
+                    "%d -> %d ticks (expected about %d)", turns, present, now, want)
 
     def position(self):
         """The last position read back: (ring_deg, head_mm)."""
@@ -307,34 +313,43 @@ class DynamixelLink:
         return {"step_index": self._step_index, "move": self._move_index, "position": list(self.position())}
 
     def home(self):
-        """Nothing to home: the servos' encoders are absolute (see :meth:`prepare` for re-basing)."""
-        log.info("Dynamixel servos have absolute encoders: nothing to home")
+        """Clear the ring's turn count (Homing Offset 0): it is then within one servo turn of 0.
+
+        The encoders are absolute within a turn, so nothing moves.
+        """
+        self._with_torque_off(self._clear_turns)
         return self.position()
 
     def set_position(self, ring_deg, head_mm):
-        """Declare where the ring is (an operator's check): Homing Offset makes it so.
+        """Declare where the machine is (e.g. the journal's last position after a power loss).
 
-        The head servo's single-turn position is absolute and cannot be declared;
-        a head more than 1 mm from ``head_mm`` is an error.
+        The encoders are exact within a servo turn, so only the ring's turn count
+        is taken from the declaration: whole turns are added (Homing Offset) to
+        bring it nearest ``ring_deg``.  A head more than 1 mm from ``head_mm`` is
+        an error (its single-turn position is absolute).
         """
-        ring, head = self.ids["ring"], self.ids["head"]
-        here = self._read(head, "Present Position")
-        if abs(self.head_mm(here) - head_mm) > 1.0:
-            raise self._fail(f"the head servo reads {self.head_mm(here):.2f} mm, not the declared "
-                             f"{head_mm:.2f} mm; its position is absolute: check head_in_ticks/head_out_ticks")
+        head = self.ids["head"]
+        here = self.head_mm(self._read(head, "Present Position"))
+        if abs(here - head_mm) > 1.0:
+            raise self._fail(f"the head servo reads {here:.2f} mm, not the declared {head_mm:.2f} mm; "
+                             "its position is absolute: check head_in_ticks/head_out_ticks")
+        self._with_torque_off(lambda: self._rebase(ring_deg, False))
+        off = self.position()[0] - ring_deg
+        if abs(off) > self.machine.pitch_deg / 2:
+            log.warning("the ring is %.2f degrees from the declared %.2f: trusting its encoder", off, ring_deg)
+        return self.position()
+
+    def _with_torque_off(self, action):
+        ring = self.ids["ring"]
         torque = self._read(ring, "Torque Enable")
-        self._write(ring, "Torque Enable", 0)
-        present = self._read(ring, "Present Position")
-        offset = self._read(ring, "Homing Offset") + self.ring_ticks(ring_deg) - present
-        if abs(offset) > CT["Homing Offset"].hi:
-            raise self._fail(f"cannot declare the ring at {ring_deg:g} deg: Homing Offset {offset} "
-                             "would leave +-1,044,479")
-        self._write(ring, "Homing Offset", offset)
+        if torque:
+            self._write(ring, "Torque Enable", 0)
+        action()
         if torque:
             self._write(ring, "Torque Enable", 1)
-        for servo_id in (ring, head):
+        for servo_id in self.ids.values():
             self.present[servo_id] = self.goal[servo_id] = self._read(servo_id, "Present Position")
-        return self.position()
+        self.position_lost = False
 
     def unlock(self):
         """Clear hardware errors without moving: reboot the servos that report one (torque off after)."""
