@@ -107,6 +107,7 @@ class LineLink:
         self.executed = []            # steps whose execution was confirmed, not yet taken
         self.lines_sent = 0
         self.bytes_sent = 0
+        self.position_lost = False    # the firmware reset or alarmed: its position is not to be trusted
 
     # ---- failures -----------------------------------------------------------------------
     def fail(self, message, where=None):

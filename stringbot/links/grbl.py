@@ -84,7 +84,7 @@ class GrblLink(LineLink):
 
         Reads the banner if the firmware prints one on connect, then asks ``$I``.
         """
-        seen = self.drain_input(quiet=0.15, limit=2.5)
+        seen = self.drain_input(quiet=0.05, limit=2.5)
         answer = self._ask("$I", seen)
         lines = tuple(seen) + tuple(answer)
         name, version, rx, blocks = "", "", 0, 0
@@ -222,6 +222,34 @@ class GrblLink(LineLink):
             self._deliver(pending, on_executed)
         self.state = LinkState.READY
 
+    def run_lines(self, lines, where):
+        """Send ``lines`` and the sync line in one write; return once the sync is answered.
+
+        The firmware gets them together, so nothing reaches it while an earlier
+        move still runs: a fault on arrival finds the machine where the last
+        executed line left it.
+        """
+        texts = [t for t in (strip_comment(x) for x in lines) if t] + [self.sync_line]
+        data = b"".join(t.encode("ascii") + b"\n" for t in texts)
+        self.state = LinkState.STREAMING
+        self.where = where
+        if len(data) > self.rx_size:
+            for t in texts:
+                self._send(t, where)
+        else:
+            while self._inflight_bytes + len(data) > self.rx_size:
+                self._wait_answers(len(self._inflight) - 1, self.motion_timeout)
+            log.debug("-> %s", " | ".join(texts))
+            self.write(data)
+            for t in texts:
+                n = len(t) + 1
+                self._inflight.append((n, where))
+                self._inflight_bytes += n
+                self.lines_sent += 1
+            self.max_inflight_bytes = max(self.max_inflight_bytes, self._inflight_bytes)
+        self._wait_answers(0, self.motion_timeout)
+        self.state = LinkState.READY
+
     def _deliver(self, pending, on_executed):
         for step in self.take_executed():
             if pending and pending[0] is step:
@@ -323,11 +351,14 @@ class GrblLink(LineLink):
                             where)
         elif line.startswith("ALARM"):
             code = _code(line)
+            if code in (1, 3, 6, 7, 8, 9, 10):
+                self.position_lost = True
             self.stop_quietly(hold=False)
             raise self.fail(f"the machine raised {grbl_alarm(code) if code is not None else line}")
         elif line.startswith("<"):
             self._status(line)
         elif _BANNER.match(line):
+            self.position_lost = True
             raise self.fail("the firmware reset itself mid-job (it printed its banner again); "
                             "its position may be lost")
         elif line.startswith(("[", "$", ">", "Grbl")):
@@ -385,9 +416,13 @@ class GrblLink(LineLink):
     def flush(self):
         """Soft reset (0x18) to drop queued lines once stopped; reads the banner back."""
         self.write(_RESET)
+        self.forget_unanswered()
+        self.drain_input(quiet=0.2, limit=2.0)
+
+    def forget_unanswered(self):
+        """Start counting afresh (lines another session sent are not ours to count)."""
         self._inflight.clear()
         self._inflight_bytes = 0
-        self.drain_input(quiet=0.2, limit=2.0)
 
     def unanswered(self):
         """Lines sent and not yet answered (for tests and for resume)."""

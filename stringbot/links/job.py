@@ -10,7 +10,7 @@ import logging
 import re
 
 from ..motion import dialect_for
-from .base import LinkState, Status
+from .base import LinkState, Status, where_of
 from .grbl import GrblLink
 from .marlin import MarlinLink
 
@@ -30,11 +30,17 @@ class GcodeMachineLink:
     machine : firmware_protocol.machine.Machine
     """
 
-    def __init__(self, proto, machine):
+    def __init__(self, proto, machine, *, sync="move"):
+        if sync not in ("move", "step"):
+            raise ValueError(f"sync is {sync!r}; expected 'move' or 'step'")
         self.proto = proto
         self.machine = machine
         self.dialect = dialect_for(machine)
         self.axes = _axis_order(machine)
+        self.sync = sync
+        self.on_move = None             # callable(step, move_index) once a move is executed
+        self._step_index = 0            # first step not yet handed over as executed
+        self._move_index = 0            # first move of it not known executed
 
     # the interface of stringbot.winding ------------------------------------------------
     @property
@@ -45,21 +51,61 @@ class GcodeMachineLink:
     def info(self):
         return self.proto.info
 
+    @property
+    def position_lost(self):
+        return self.proto.position_lost
+
     def identify(self):
         return self.proto.identify()
 
-    def prepare(self, *, home):
+    def prepare(self, *, home, resume_at=None):
         """Alarms, homing where the machine file says so, modal state."""
         home_lines = self.dialect.home() if home else []
         self.proto.prepare(home=bool(home_lines), preamble=self.dialect.preamble(),
                            home_lines=home_lines)
 
     def execute(self, steps, on_executed=None):
-        self.proto.execute(steps, self.dialect.step_lines, on_executed)
+        """Run ``steps``: move by move (``sync="move"``) or streamed with a sync per step."""
+        if self.sync == "step":
+            def done(step):
+                self._step_index, self._move_index = step.index + 1, 0
+                if on_executed is not None:
+                    on_executed(step)
+            self.proto.execute(steps, self.dialect.step_lines, done)
+            return
+        for step in steps:
+            self.run_step(step, 0, on_executed)
 
-    def execute_lines(self, step, lines, on_executed=None):
-        """Execute ``lines`` (the rest of ``step`` after an interruption) as that step."""
-        self.proto.execute([step], lambda _s: lines, on_executed)
+    def execute_lines(self, step, moves, on_executed=None):
+        """Run the rest of ``step`` after a stop: ``moves`` are its Moves from the interrupted one on.
+
+        Each Move is an absolute target: re-issued from wherever the axes stopped
+        on its path, it finishes the same straight path.
+        """
+        self.run_step(step, len(step.moves) - len(moves), on_executed)
+
+    def run_step(self, step, first, on_executed=None):
+        """Moves ``first``.. of ``step``, each sent with a sync and waited for."""
+        where = where_of(step)
+        self._step_index = step.index
+        for k in range(first, len(step.moves)):
+            self._move_index = k
+            self.proto.run_lines([self.dialect.move_line(step.moves[k])], where)
+            self._move_index = k + 1
+            if self.on_move is not None:
+                self.on_move(step, k)
+        if step.dwell_s > 0:
+            self.proto.run_lines([self.dialect.dwell(step.dwell_s)], where)
+        self._step_index, self._move_index = step.index + 1, 0
+        if on_executed is not None:
+            on_executed(step)
+        else:
+            self.proto.executed.append(step)
+
+    def stop_point(self):
+        """``{"step_index", "move"}``: the first step not handed over, the first of its moves
+        not known executed (the one that was running, or about to)."""
+        return {"step_index": self._step_index, "move": self._move_index}
 
     def finish(self):
         self.proto.finish(self.dialect.end())
@@ -150,12 +196,13 @@ def _axis_order(machine):
 
 def gcode_machine_link(port, machine, **options):
     """The step-level link for a G-code ``machine`` over an open ``port``."""
+    sync = options.pop("sync", "move")
     dialect = machine["controller.dialect"]
     if dialect in ("grbl", "grblhal"):
         proto = GrblLink(port, dialect, **options)
     else:
         proto = MarlinLink(port, **options)
-    return GcodeMachineLink(proto, machine)
+    return GcodeMachineLink(proto, machine, sync=sync)
 
 
 # re-exported for type checks in winding

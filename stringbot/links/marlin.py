@@ -57,7 +57,7 @@ class MarlinLink(LineLink):
 
     # ---- identification --------------------------------------------------------------
     def identify(self):
-        seen = self.drain_input(quiet=0.15, limit=2.5)
+        seen = self.drain_input(quiet=0.05, limit=2.5)
         answer = []
         for attempt in range(2):
             self.write(b"M115\n")
@@ -140,6 +140,17 @@ class MarlinLink(LineLink):
                     on_executed(done)
         self.state = LinkState.READY
 
+    def run_lines(self, lines, where):
+        """Send ``lines`` then ``M400``; return once ``M400`` is answered (all executed)."""
+        self.state = LinkState.STREAMING
+        self.where = where
+        for text in lines:
+            text = strip_comment(text)
+            if text:
+                self._send(text, where, self.motion_timeout)
+        self._send(self.sync_line, where, self.motion_timeout)
+        self.state = LinkState.READY
+
     def finish(self, lines=()):
         for line in lines:
             line = strip_comment(line)
@@ -216,6 +227,7 @@ class MarlinLink(LineLink):
                 self.stop_quietly()
                 raise self.fail(f"the machine did not understand a line: {line[5:80]!r}", where)
             if low == "start" or low.startswith("echo:marlin") or low.startswith("marlin "):
+                self.position_lost = True
                 raise self.fail("the firmware reset itself mid-job (it printed its start banner); "
                                 "its position may be lost", where)
             if line.startswith("X:") and _POS.search(line):

@@ -7,6 +7,7 @@ One record per line.  The first is the header::
 
 then, as the winding goes::
 
+    {"kind": "move", "step": 17, "move": 1, "t": ...}     move 1 of step 17 executed
     {"kind": "done", "step": 17, "pin": 42, "t": ...}     step 17 EXECUTED (its sync answered)
     {"kind": "stop", "reason": "interrupted" | "failed", "error": "...", "step": 18,
      "pin": 7, "head": "in" | "out" | "unknown", "position": [ring_deg, head_mm] | null, "t": ...}
@@ -58,6 +59,7 @@ class JournalState:
         return self.header.get("steps")
 
     next_step: int = 0                                # the first step not yet executed
+    next_move: int = 0                                # the first move of it not yet executed
 
     @property
     def last_stop(self):
@@ -100,6 +102,10 @@ def read_journal(path):
         if kind == "done":
             state.done.append(int(rec["step"]))
             state.next_step = int(rec["step"]) + 1
+            state.next_move = 0
+        elif kind == "move":
+            if int(rec["step"]) == state.next_step:
+                state.next_move = int(rec["move"]) + 1
         elif kind == "stop":
             state.stops.append(rec)
         elif kind == "resume":
@@ -108,6 +114,7 @@ def read_journal(path):
             start = int(rec.get("from_step", state.next_step))
             state.done = [s for s in state.done if s < start]
             state.next_step = start
+            state.next_move = int(rec.get("from_move", 0))
         elif kind == "finished":
             state.finished = True
         state.last_time = rec.get("t", state.last_time)
@@ -120,30 +127,33 @@ class Journal:
     Use :meth:`create` for a new winding, :meth:`reopen` to append after a resume.
     """
 
-    def __init__(self, path, fd):
+    def __init__(self, path, fd, durable=True):
         self.path = Path(path)
         self._fd = fd
+        self.durable = durable
 
     @classmethod
-    def create(cls, path, *, plan_path, plan_sha256, machine, steps):
+    def create(cls, path, *, plan_path, plan_sha256, machine, steps, durable=True):
+        """A new journal.  ``durable=False`` skips fsync: only for a simulated machine that
+        lives in this process (it dies with the process, so there is nothing to resume)."""
         path = Path(path)
         if path.is_dir():
             raise BadInput(f"journal path {str(path)!r} is a folder; expected a file path")
         if not path.parent.is_dir():
             raise BadInput(f"journal folder {str(path.parent)!r} does not exist; create it first")
         fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        j = cls(path, fd)
+        j = cls(path, fd, durable)
         j.append({"kind": "start", "format": FORMAT, "version": VERSION, "plan": str(plan_path),
                   "plan_sha256": plan_sha256, "machine": machine, "steps": steps})
         _fsync_dir(path.parent)
         return j
 
     @classmethod
-    def reopen(cls, path):
+    def reopen(cls, path, *, durable=True):
         path = Path(path)
         data = path.read_bytes()
         fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-        j = cls(path, fd)
+        j = cls(path, fd, durable)
         if data and not data.endswith(b"\n"):
             os.write(fd, b"\n")       # close a torn last line so that the next record stands alone
         return j
@@ -156,7 +166,8 @@ class Journal:
         if self._fd is None:
             raise RuntimeError("journal is closed")
         os.write(self._fd, line.encode("utf-8"))
-        os.fsync(self._fd)
+        if self.durable:
+            os.fsync(self._fd)
 
     def done(self, step, pin):
         self.append({"kind": "done", "step": int(step), "pin": int(pin)})

@@ -127,16 +127,18 @@ class Winder:
             self.state = WindState.INTERRUPTED
             raise Interrupted("stopped by the operator before winding; nothing was moved")
 
-    def wind(self, first=0, *, first_lines=None, finish=True):
-        """Wind steps ``first``.. to the end; ``first_lines`` replaces step ``first``'s lines."""
+    def wind(self, first=0, *, first_moves=None, finish=True):
+        """Wind steps ``first``.. to the end; ``first_moves`` are what is left of step ``first``."""
         self.state = WindState.WINDING
         self._first = first
         self.done = first
         self._t0 = time.monotonic()
         self._est_done = 0.0
+        if hasattr(self.link, "on_move") and self.journal is not None:
+            self.link.on_move = self._moved
         try:
-            if first_lines is not None and first < len(self.steps):
-                self.link.execute_lines(self.steps[first], first_lines, self._executed)
+            if first_moves is not None and first < len(self.steps):
+                self.link.execute_lines(self.steps[first], first_moves, self._executed)
                 first += 1
             self.link.execute(self.steps[first:], self._executed)
             if finish:
@@ -164,6 +166,17 @@ class Winder:
         self._est_done += self.est[step.index]
         if self.progress is not None:
             self.progress(self._progress(step))
+
+    def _moved(self, step, move):
+        """Move ``move`` of ``step`` executed (journaled so that resume knows where the head is)."""
+        if move + 1 < len(step.moves) and self._outside(step.moves[move].head_mm):
+            self.journal.append({"kind": "move", "step": step.index, "move": move})
+
+    def _outside(self, head_mm):
+        """Head past the pin circle (only those moves are journaled: they decide the head side)."""
+        m = self.machine
+        h_in, h_out = m["head.in_mm"], m["head.out_mm"]
+        return abs(head_mm - h_out) < abs(head_mm - h_in)
 
     def _progress(self, step):
         elapsed = time.monotonic() - self._t0
@@ -217,9 +230,17 @@ class Winder:
             return
         step, pin = self._current()
         pos = getattr(status, "mpos", None) if status is not None else None
+        point = None
+        if hasattr(self.link, "stop_point"):
+            try:
+                point = self.link.stop_point()
+                point = {"step_index": point["step_index"], "move": point["move"]}
+            except Exception:
+                point = None
         try:
             self.journal.append({"kind": "stop", "reason": reason, "error": message,
-                                 "step": step, "pin": pin, "next_step": self.done,
+                                 "step": step, "pin": pin, "next_step": self.done, "at": point,
+                                 "position_lost": bool(getattr(self.link, "position_lost", False)),
                                  "position": list(pos) if pos else None})
         except OSError:
             log.exception("could not write the journal's stop record")

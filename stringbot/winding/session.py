@@ -77,7 +77,7 @@ def _new_journal(job):
                            "steps done: add --resume to continue that winding, or --from-step N "
                            "to restart from step N")
     return Journal.create(path, plan_path=job.plan_path, plan_sha256=job.plan.sha256(),
-                          machine=job.machine.name, steps=len(job.steps))
+                          machine=job.machine.name, steps=len(job.steps), durable=not job.fresh_world)
 
 
 def wind_plan(job, *, confirm=None, progress=None, link_options=None):

@@ -1,0 +1,312 @@
+"""``--resume``, ``--from-step`` and ``--status``: continue a winding exactly where it stopped.
+
+Where the journal leaves the job
+--------------------------------
+The journal records every executed step, and every executed move that ends
+with the head OUT (those decide which side of the pin circle the head is on);
+a live host adds a ``stop`` record naming the move that was running.  So the
+machine is known to stand somewhere on the path from the end of the last
+recorded move, along the next move or two.
+
+Finding the machine
+-------------------
+If the firmware kept its position (no banner on reconnect, no alarm, no reset
+seen while winding), its position is located on that path: at a move's end
+(that move was executed) or inside a move (re-issuing the move, an absolute
+target, finishes the same straight path).  A machine still moving (the host
+died, the firmware runs what it had) is waited for; one in feed hold is
+flushed (soft reset once stopped; GRBL keeps its position).
+
+If the firmware lost its position (reset, power loss), the head side comes
+from the journal, from ``--head-side`` or from the operator.  A machine with
+home switches takes the head IN through the gap it stands at (never across a
+pin), homes with the head IN (the ring turns freely then), re-declares the
+ring's turn count from the journal and goes back along the ring to the
+journal's point.  A machine without switches is told where it is (G10 L20 /
+G92) after the operator confirms it.  Then the modal state is restored and
+the winding continues with the interrupted move.
+"""
+
+import datetime
+import logging
+
+from firmware_protocol.grbl import is_banner
+
+from ..errors import BadInput, MachineFailure
+from ..links import open_link
+from .journal import Journal, read_journal
+from .loop import Winder
+
+__all__ = ["resume_plan", "status_lines", "locate"]
+
+log = logging.getLogger(__name__)
+
+TOL = 0.01       # degrees / mm: positions come back with 3 decimals
+
+
+def _near(a, b):
+    return abs(a[0] - b[0]) <= TOL and abs(a[1] - b[1]) <= TOL
+
+
+def _on_segment(p, a, b):
+    """``p`` strictly inside the straight segment a -> b (the moves are straight lines)."""
+    dr, dh = b[0] - a[0], b[1] - a[1]
+    length2 = dr * dr + dh * dh
+    if length2 <= TOL * TOL:
+        return False
+    t = ((p[0] - a[0]) * dr + (p[1] - a[1]) * dh) / length2
+    if t <= 0.0 or t >= 1.0:
+        return False
+    q = (a[0] + t * dr, a[1] + t * dh)
+    return _near(p, q)
+
+
+def _point(move):
+    return (move.ring_deg, move.head_mm)
+
+
+def start_point(steps, s, machine):
+    """Where step ``s`` starts: the end of step ``s - 1`` (the job's start for step 0)."""
+    if s == 0:
+        return (steps[0].moves[0].ring_deg, machine["head.in_mm"])
+    return _point(steps[s - 1].moves[-1])
+
+
+def locate(p, steps, s, m, machine):
+    """Where on the path from (step ``s``, move ``m``) on the machine at ``p`` stands.
+
+    Returns ``(step, move)``: continue with that move of that step (``move`` 0 of
+    the next step when ``p`` is the end of step ``s``), or None if ``p`` is not on
+    the path.
+    """
+    for step_i in (s, s + 1):
+        if step_i >= len(steps):
+            if step_i == len(steps) and _near(p, _point(steps[-1].moves[-1])):
+                return (len(steps), 0)
+            break
+        moves = steps[step_i].moves
+        first = m if step_i == s else 0
+        prev = _point(moves[first - 1]) if first > 0 else start_point(steps, step_i, machine)
+        for k in range(first, len(moves)):
+            target = _point(moves[k])
+            if _near(p, prev) or _on_segment(p, prev, target):
+                return (step_i, k)
+            prev = target
+        if _near(p, prev):
+            return (step_i + 1, 0)
+    return None
+
+
+def _side(machine, head_mm):
+    h_in, h_out = machine["head.in_mm"], machine["head.out_mm"]
+    return "out" if abs(head_mm - h_out) < abs(head_mm - h_in) else "in"
+
+
+def _fmt_time(t):
+    if t is None:
+        return "?"
+    return datetime.datetime.fromtimestamp(t).strftime("%Y-%m-%d %H:%M:%S")
+
+
+def status_lines(job):
+    """What ``--status`` prints: steps done, when, the last error."""
+    state = read_journal(job.journal_path)
+    job.header_check(state)
+    h = state.header
+    total = state.steps_total
+    lines = [f"journal: {state.path}",
+             f"plan: {h.get('plan')} (sha256 {str(h.get('plan_sha256'))[:16]}...), machine {h.get('machine')}",
+             f"started: {_fmt_time(h.get('t'))}; last record: {_fmt_time(state.last_time)}"]
+    nxt = state.next_step
+    if state.finished:
+        lines.append(f"finished: all {total} steps done")
+    else:
+        pin = job.steps[nxt].pin if nxt < len(job.steps) else None
+        lines.append(f"steps done: {len(state.done)} of {total}; next: step {nxt + 1}"
+                     + (f" (pin {pin})" if pin is not None else ""))
+    if state.resumes:
+        lines.append(f"resumed {len(state.resumes)} time(s)")
+    stop = state.last_stop
+    if stop is not None:
+        lines.append(f"last stop: {stop.get('reason')} at {_fmt_time(stop.get('t'))}: {stop.get('error')}")
+    if state.torn:
+        lines.append("note: a torn last record (a crash while writing) was ignored")
+    return lines
+
+
+def _journal_point(state):
+    """(step, move) the journal leaves the job at, sharpened by a live host's stop record."""
+    s, m = state.next_step, state.next_move
+    stop = state.last_stop
+    at = stop.get("at") if stop else None
+    if at and stop is state.stops[-1] and (not state.resumes or stop.get("t", 0) >= state.resumes[-1].get("t", 0)):
+        cand = (int(at["step_index"]), int(at["move"]))
+        if cand > (s, m):
+            s, m = cand
+    return s, m
+
+
+def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=None, link_options=None):
+    """Continue the winding of ``job`` from its journal (or restart at ``from_step``, from 1)."""
+    state = read_journal(job.journal_path)
+    job.header_check(state)
+    steps, machine = job.steps, job.machine
+    if state.finished and from_step is None:
+        raise BadInput(f"journal {str(state.path)!r} says the winding is finished; nothing to resume "
+                       "(use --from-step N to wind steps again)")
+    if from_step is not None and not 1 <= from_step <= len(steps):
+        raise BadInput(f"--from-step is {from_step}; expected a step 1..{len(steps)}")
+    s, m = _journal_point(state)
+    journal = Journal.reopen(job.journal_path, durable=not job.fresh_world)
+    link = None
+    try:
+        link = open_link(job.url, machine, **(link_options or {}))
+        winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
+        winder.state = winder.state.CONNECTING
+        if hasattr(link, "proto"):
+            here, lost = _recover_gcode(link, job, state, s, m, head_side, confirm)
+        else:
+            here, lost = _recover_servo(link, job, s, m)
+        where = locate(here, steps, s, m, machine) if s < len(steps) else (len(steps), 0)
+        if where is None and lost:
+            where = locate(here, steps, s, 0, machine)
+        if where is None:
+            raise MachineFailure(f"the machine stands at ring {here[0]:.3f}, head {here[1]:.3f}, which is "
+                                 f"not on the path the journal expects (step {s + 1}, move {m + 1}); "
+                                 "check it, then restart with --from-step N")
+        s2, k2 = where
+        for i in range(state.next_step, s2):
+            journal.done(i, steps[i].pin)       # executed, now known from the machine's position
+        if from_step is not None:
+            if _side(machine, here[1]) != "in":
+                raise BadInput("the head is OUT; --from-step needs it IN: resume first, or move it in by hand")
+            s2, k2 = from_step - 1, 0
+            winder.ask(f"Restart from step {from_step} (pin {steps[s2].pin}); the steps from there on "
+                       "are wound again. Go on?")
+        elif s2 < len(steps):
+            winder.ask(f"Resume at pin {steps[s2].pin} (step {s2 + 1} of {len(steps)}, move {k2 + 1})?")
+        journal.append({"kind": "resume", "from_step": s2, "from_move": k2, "position_lost": lost})
+        if s2 >= len(steps):
+            return winder.wind(len(steps))
+        return winder.wind(s2, first_moves=steps[s2].moves[k2:])
+    finally:
+        if link is not None:
+            link.close()
+        journal.close()
+
+
+def _recover_gcode(link, job, state, s, m, head_side, confirm):
+    """Reconnect a G-code machine and find where it stands; returns ((ring, head), position_lost)."""
+    machine, steps = job.machine, job.steps
+    proto = link.proto
+    said = proto.drain_input(quiet=0.05, limit=2.5)       # a banner here: it restarted
+    grbl = hasattr(proto, "flush")
+    st = _settle(proto) if grbl else None                 # $I is refused while it moves or holds
+    info = link.identify()
+    lost = any(is_banner(x) or x.strip() == "start" for x in list(said) + list(info.lines) if x)
+    stop = state.last_stop
+    if stop is not None and stop.get("position_lost") and not state_resumed_after(state, stop):
+        lost = True
+    if grbl:
+        st = proto.status()
+        if st.state == "Alarm":
+            lost = True
+            proto.command("$X")
+    if not lost:
+        here = link.position()
+        if here is None:
+            lost = True
+    if lost:
+        here = _lost_position(link, job, s, m, head_side, confirm)
+    proto.prepare(home=False, preamble=link.dialect.preamble())
+    return here, lost
+
+
+def state_resumed_after(state, stop):
+    return bool(state.resumes) and state.resumes[-1].get("t", 0) > stop.get("t", 0)
+
+
+def _settle(proto, timeout=600.0):
+    """Let a machine that still runs finish; flush one in feed hold.  Returns the status."""
+    import time
+    deadline = time.monotonic() + timeout
+    while True:
+        st = proto.status()
+        if st.state == "Hold" and st.sub == "0":
+            proto.flush()
+            continue
+        if st.state in ("Idle", "Alarm", "Check"):
+            proto.drain_input(quiet=0.05, limit=0.5)
+            proto.forget_unanswered()
+            return st
+        if time.monotonic() > deadline:
+            raise proto.fail(f"the machine is still {st.state} after {timeout:.0f} s; stop it and resume")
+        time.sleep(0.05)
+
+
+def _lost_position(link, job, s, m, head_side, confirm):
+    """The firmware lost its position: decide where the machine is and tell it (homing if it can)."""
+    machine, steps = job.machine, job.steps
+    if s >= len(steps):
+        before = after = _point(steps[-1].moves[-1])
+    else:
+        before = _point(steps[s].moves[m - 1]) if m > 0 else start_point(steps, s, machine)
+        after = _point(steps[s].moves[m])
+    sides = {_side(machine, before[1]), _side(machine, after[1])}
+    if len(sides) == 1:
+        side = sides.pop()
+    elif head_side is not None:
+        side = head_side
+    elif confirm is not None:
+        side = "out" if confirm("The machine lost its position while the head was moving. Is the head "
+                                "OUT (outside the pin circle)? (no = IN)") else "in"
+    else:
+        raise BadInput("the machine lost its position while the thread head was moving in or out; "
+                       "look at it and give --head-side in or --head-side out")
+    here = before if _side(machine, before[1]) == side else after
+    pins = machine.pins
+    gap = (here[0] - machine["ring.pin0_angle_deg"]) / machine.pitch_deg
+    if confirm is not None and not confirm(
+            f"The firmware lost its position. The journal puts the ring at {here[0]:.3f} deg (pin "
+            f"position {gap % pins:.1f}) with the head {side.upper()}. Is that where it stands?"):
+        raise BadInput("the machine is not where the journal says; move it there by hand "
+                       "(or restart with --from-step N)")
+    link.set_position(*here)
+    if machine["controller.homing"]:
+        head_in = machine["head.in_mm"]
+        if side == "out":
+            link.proto.run_lines([link.dialect.move_line(_move(here[0], head_in, machine, "head"))],
+                                 link.proto.where)
+            here = (here[0], head_in)
+        link.home()
+        home_ring = machine["controller.home_ring_deg"]
+        home_head = machine["controller.home_head_mm"]
+        home_head = head_in if home_head is None else home_head
+        turns = round((here[0] - home_ring) / 360.0)
+        link.set_position(home_ring + 360.0 * turns, home_head)
+        if home_head != head_in:
+            link.proto.run_lines([link.dialect.move_line(_move(home_ring + 360.0 * turns, head_in, machine,
+                                                               "head"))], link.proto.where)
+        link.proto.run_lines([link.dialect.move_line(_move(here[0], head_in, machine, "ring"))],
+                             link.proto.where)
+    return here
+
+
+def _move(ring_deg, head_mm, machine, axis):
+    from ..motion import Move
+    feed = machine["ring.feed_deg_per_min"] if axis == "ring" else machine["head.feed_mm_per_min"]
+    return Move(ring_deg, head_mm, feed)
+
+
+def _recover_servo(link, job, s, m):
+    """A servo link re-bases itself from the journal's point; its position is then read back."""
+    steps, machine = job.steps, job.machine
+    link.identify()
+    if s < len(steps):
+        hint = _point(steps[s].moves[m - 1]) if m > 0 else start_point(steps, s, machine)
+    else:
+        hint = _point(steps[-1].moves[-1])
+    here = link.prepare(home=False, resume_at=hint)
+    if here is None:
+        here = link.position()
+    return tuple(here), False

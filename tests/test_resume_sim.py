@@ -1,0 +1,119 @@
+"""Resume after every kind of fault, through sim:// in this process (the machine is kept per URL).
+
+After each interruption the same command runs with --resume until the job is
+finished; the world's wraps must then equal the plan's sequence exactly, with
+no collision.  The operator's answer to "where is the head?" (only asked when
+the firmware lost its position while the head was moving) is read from the
+world, as an operator would look at the machine.
+"""
+
+import json
+
+import pytest
+
+from firmware_protocol.machine import load_machine
+from stringbot.errors import BadInput, Interrupted, MachineFailure
+from stringbot.links import sim_url
+from stringbot.planner import write_plan
+from stringbot.winding import Job, read_journal, wind_plan
+from stringbot.winding.resume import resume_plan, status_lines
+
+from test_wind_sim import small_plan
+
+
+def make_job(tmp_path, name, faults, n=12, seed=3):
+    plan = small_plan(n=n, seed=seed)
+    plan_path = tmp_path / "plan.json"
+    write_plan(plan, plan_path)
+    record = tmp_path / "rec.json"
+    url = sim_url(name, record=record, faults=faults)
+    job = Job(plan_path, load_machine(name), port=url, journal=tmp_path / "plan.journal")
+    return job, plan, record
+
+
+def head_side_from_world(url):
+    """What an operator sees: the simulated machine's head (the record file is saved per wrap only)."""
+    from firmware_protocol.urlhandler import protocol_sim
+    return "out" if protocol_sim.session(url).world.head_out else "in"
+
+
+def wind_to_the_end(job, record, first=None, max_runs=10):
+    """Wind, then resume after every stop; returns the number of interruptions."""
+    stops = 0
+    run = first or (lambda: wind_plan(job, confirm=None))
+    for _ in range(max_runs):
+        try:
+            run()
+            return stops
+        except (MachineFailure, Interrupted):
+            stops += 1
+        run = lambda: resume_plan(job, confirm=None, head_side=head_side_from_world(job.url))
+    raise AssertionError("still not finished after %d runs" % max_runs)
+
+
+def check_world(record, plan):
+    rec = json.loads(record.read_text())
+    assert rec["collisions"] == []
+    assert [w["pin"] for w in rec["wraps"]] == plan.sequence
+
+
+# lines the firmware receives: $I, G21, G90, G94, then per move "G1 ..." + "G4 P0"
+POINTS = [6, 9, 12, 15, 18, 21, 24, 27, 30, 41, 52, 63]
+
+
+@pytest.mark.parametrize("kind", ["disconnect", "reset", "power", "garble", "drop-ok", "error"])
+@pytest.mark.parametrize("n", POINTS)
+def test_fault_then_resume_winds_the_plan_exactly(tmp_path, kind, n):
+    job, plan, record = make_job(tmp_path, "grbl-ring", f"{kind}@{n}")
+    wind_to_the_end(job, record)
+    check_world(record, plan)
+    assert read_journal(job.journal_path).finished
+
+
+@pytest.mark.parametrize("name", ["grblhal-ring"])
+@pytest.mark.parametrize("kind", ["reset", "power", "disconnect"])
+@pytest.mark.parametrize("n", [20, 23, 26, 29, 40])
+def test_fault_on_a_homing_machine(tmp_path, name, kind, n):
+    job, plan, record = make_job(tmp_path, name, f"{kind}@{n}")
+    wind_to_the_end(job, record)
+    check_world(record, plan)
+
+
+@pytest.mark.parametrize("at_step", [1, 4, 9])
+def test_ctrl_c_then_resume(tmp_path, at_step):
+    job, plan, record = make_job(tmp_path, "grbl-ring", None)
+
+    def progress(p):
+        if p.done == at_step:
+            raise KeyboardInterrupt
+    with pytest.raises(Interrupted, match="feed hold"):
+        wind_plan(job, confirm=None, progress=progress)
+    state = read_journal(job.journal_path)
+    assert state.last_stop["reason"] == "interrupted"
+    assert any("steps done" in line for line in status_lines(job))
+    resume_plan(job, confirm=None)
+    check_world(record, plan)
+
+
+def test_journal_for_another_plan_or_machine_is_refused(tmp_path):
+    job, plan, record = make_job(tmp_path, "grbl-ring", "disconnect@30")
+    with pytest.raises(MachineFailure):
+        wind_plan(job, confirm=None)
+    other = Job(job.plan_path, load_machine("grblhal-ring"), port=job.url, journal=job.journal_path)
+    with pytest.raises(BadInput, match="machine 'grbl-ring'"):
+        resume_plan(other, confirm=None)
+    write_plan(small_plan(n=12, seed=99), tmp_path / "other.json")
+    other = Job(tmp_path / "other.json", job.machine, port=job.url, journal=job.journal_path)
+    with pytest.raises(BadInput, match="another plan"):
+        resume_plan(other, confirm=None)
+
+
+def test_from_step_rewinds_from_a_chosen_step(tmp_path):
+    job, plan, record = make_job(tmp_path, "grbl-ring", None, n=8)
+    wind_plan(job, confirm=None)
+    asked = []
+    resume_plan(job, from_step=6, confirm=lambda q: asked.append(q) or True)
+    assert any("Restart from step 6" in q for q in asked)
+    rec = json.loads(record.read_text())
+    assert [w["pin"] for w in rec["wraps"]] == plan.sequence + plan.sequence[5:]
+    assert rec["collisions"] == []
