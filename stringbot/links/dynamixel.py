@@ -18,11 +18,21 @@ Position, within the extended range -1,048,575..1,048,575); head ticks map
 linearly head_in_ticks..head_out_ticks <-> head.in_mm..head.out_mm.
 
 Resume after a power loss or a reboot: the ring servo then reports its
-position within one turn.  ``prepare(resume_at=(ring_deg, head_mm))``, given
-where the machine was last known to be (:meth:`DynamixelLink.position`, which
-the journal keeps), adds the whole turns back through Homing Offset (20), so
-that Present Position is again the ring's multi-turn position.  That is exact
-as long as the ring is within half a servo turn of the hint.
+position within one turn (:attr:`DynamixelLink.position_lost`).
+``prepare(resume_at=(ring_deg, head_mm))`` or ``set_position(ring_deg,
+head_mm)``, given where the ring was last seen with torque on
+(:meth:`DynamixelLink.position`, which the journal keeps), adds the whole
+turns back through Homing Offset (20), so that Present Position is again the
+ring's multi-turn position.  That is exact as long as the ring is within half
+a servo turn of the hint.  :meth:`DynamixelLink.stop_point` says which move of
+which step to re-issue: each move is an absolute single-axis target, so the
+rest of the interrupted step finishes the same path and no pin is hooked twice.
+
+The wind loop's interface (``stringbot.winding``): ``identify``, ``prepare``,
+``execute``, ``execute_lines`` (the rest of a step: Moves), ``finish``,
+``hold``, ``take_executed``, ``status``, ``position``, ``home``,
+``set_position``, ``unlock``, ``flush``, ``close``; ``info``, ``lines_sent``,
+``on_move``, ``position_lost``, ``stop_point()``.
 """
 
 import logging
