@@ -259,3 +259,19 @@ def test_brownout_and_trapezoid_timing_helpers_are_consistent():
     p = Profile.move(0.0, 10.0, 5.0, 2.0)           # ramps 2.5 s / 6.25 mm each: a triangle
     assert p.duration == pytest.approx(2 * math.sqrt(10.0 / 2.0))
     assert p.at(p.duration)[0] == pytest.approx(10.0)
+
+
+def test_arcs_are_cut_into_segments_on_the_circle():
+    emu = emulator()
+    run_exchange(emu, [
+        (b"G2 X10 Y0 F600\n", b"error:35\r\n"),          # no I or J
+        (b"G2 I5 F600\n", b"error:32\r\n"),              # no in-plane axis word
+        (b"G2 X10 Y0 I3 F600\n", b"error:33\r\n"),       # the end is not on the circle
+        (b"G2 X10 Y0 R2 F600\n", b"error:33\r\n"),       # radius too small for the chord
+        (b"G17 G2 X10 Y0 I5 J0 F600\n", OK),             # half circle through Y=+5 (clockwise)
+        (b"G4 P0\n", OK),
+    ])
+    assert emu.world.ring_deg == pytest.approx(10.0) and emu.world.head_mm == pytest.approx(0.0)
+    assert emu.world.moves > 20                           # cut within the 0.002 mm tolerance
+    run_exchange(emu, [(b"G3 X0 Y0 R5\n", OK), (b"G4 P0\n", OK)])
+    assert emu.world.ring_deg == pytest.approx(0.0, abs=1e-9)

@@ -119,3 +119,14 @@ def test_error_fault_is_a_rejected_line_with_resend():
         (N(1, "G0 Y19"), b"Error:checksum mismatch, Last Line: 0\nResend: 1\nok\n"),
         (N(1, "G0 Y19"), OK),
     ])
+
+
+def test_arcs_and_bad_arc_parameters():
+    emu = emulator()
+    run_exchange(emu, [
+        (b"G2 X10 Y0\n", b"Error:G2/G3 bad parameters\nok\n"),
+        (b"G2 X10 Y0 I5 F600\n", OK),
+        (b"M400\n", OK),
+        (b"M114\n", b"X:10.00 Y:0.00 Z:0.00 A:0.00 Count X:800 Y:0 Z:0 A:0\nok\n"),
+    ])
+    assert emu.world.moves > 10                  # 1 mm segments round a 5 mm radius

@@ -89,6 +89,7 @@ class GrblEmulator(GcodeFirmware):
         self.user_string = ""
         self.startup_lines = ["", ""]
         self.parser = GrblParser(self.axes)
+        self.apply_settings()
         self.state = GrblState.IDLE
         self._raw = bytearray()
         self._wco_counter = self._ovr_counter = 0
@@ -240,8 +241,8 @@ class GrblEmulator(GcodeFirmware):
             return self._queue_moves([action.target], rapid=action.rapid, feed=action.feed,
                                      inverse=action.inverse_time, line_number=action.line_number)
         if action.kind == "moves":
-            return self._queue_moves(action.targets, rapid=True, feed=0.0, inverse=False,
-                                     line_number=action.line_number)
+            return self._queue_moves(action.targets, rapid=action.rapid, feed=action.feed,
+                                     inverse=False, line_number=action.line_number)
         if action.kind == "dwell":
             return self._dwell(action.seconds)
         if action.kind == "end":
@@ -383,6 +384,8 @@ class GrblEmulator(GcodeFirmware):
     def apply_settings(self):
         """Axis rates and accelerations take effect for the blocks planned next."""
         self.motion.rates, self.motion.accels = self._rates(), self._accels()
+        if hasattr(self, "parser"):
+            self.parser.arc_tolerance = self.settings[12]
 
     def format_settings(self):
         return format_settings(self.settings)

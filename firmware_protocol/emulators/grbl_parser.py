@@ -9,13 +9,17 @@ parser keeps GRBL's modal state (``$G``), the work coordinate systems
 idea of where the last queued motion ends (``position``), which is what GRBL
 plans from.
 
-Not modelled: arcs (``G2``/``G3`` answer ``error:20``), probing (``G38.x``),
+Arcs (``G2``/``G3``, radius or offset form, in the selected plane) are cut into
+straight segments within the arc tolerance (``$12``) as GRBL's ``mc_arc`` does.
+Not modelled: probing (``G38.x``),
 cutter compensation beyond ``G40``, ``G61``, ``M7`` (a compile-time option, off
 in stock builds).
 """
 
 import math
 from dataclasses import dataclass, field
+
+from .motion import arc_points
 
 __all__ = ["GrblError", "Action", "ParserState", "GrblParser", "read_words", "fmt"]
 
@@ -139,6 +143,7 @@ class GrblParser:
         self.g30 = [0.0] * n
         self.position = [0.0] * n
         self.state = ParserState(g92=[0.0] * n)
+        self.arc_tolerance = 0.002      # GRBL $12, mm
 
     def reset(self, position):
         """Soft reset: default modal state, G92 cleared, planning from ``position``."""
@@ -201,8 +206,6 @@ class GrblParser:
             if axis_command:
                 raise GrblError(24)
             axis_command = "motion"
-        if motion in (2, 3):
-            raise GrblError(20, "arcs are not supported by this simulator")
         if motion == 38:
             raise GrblError(20, "probing is not supported by this simulator")
         if gcodes.get("tlo") == (43, 1) and "Z" not in self.axes:
@@ -256,6 +259,11 @@ class GrblParser:
         move_motion = axis_command == "motion" and new_motion in (0, 1)
         if move_motion and new_motion == 1 and feed == 0.0:
             raise GrblError(22)
+        arc = None
+        if axis_command == "motion" and new_motion in (2, 3):
+            if feed == 0.0:
+                raise GrblError(22)
+            arc = self._check_arc(gcodes, values, axis_words, used, scale, new_motion == 2)
         unused = set(values) - used
         if unused:
             raise GrblError(36, "".join(sorted(unused)))
@@ -323,6 +331,10 @@ class GrblParser:
             targets.append(tuple(stored))
             self.position = list(targets[-1])
             return Action(kind="moves", targets=targets, rapid=True, line_number=action.line_number)
+        if arc is not None:
+            self.position = list(arc[-1])
+            return Action(kind="moves", targets=arc, feed=st.feed, inverse_time=inverse,
+                          line_number=action.line_number)
         if move_motion and axis_words:
             use_wco = [0.0] * len(self.axes) if nonmodal == 53 else wco
             target = self._target(axis_words, scale, absolute and True, use_wco,
@@ -343,6 +355,52 @@ class GrblParser:
         if stop in (0, 1) and action.kind == "none":
             return Action(kind="pause", line_number=action.line_number)
         return action
+
+    def _check_arc(self, gcodes, values, axis_words, used, scale, clockwise):
+        """GRBL's arc checks; the arc's points (machine coordinates) or GrblError 32/33/35."""
+        st = self.state
+        plane = gcodes.get("plane", int(st.plane[1:]))
+        a0, a1 = {17: ("X", "Y"), 18: ("Z", "X"), 19: ("Y", "Z")}[plane]
+        offset_letter = {"X": "I", "Y": "J", "Z": "K"}
+        if a0 not in axis_words and a1 not in axis_words:
+            raise GrblError(32)
+        absolute = gcodes.get("distance", int(st.distance[1:])) == 90
+        coord = gcodes["coord"] - 54 if "coord" in gcodes else st.coord
+        wco = [c + g for c, g in zip(self.coord_systems[coord], st.g92)]
+        target = self._target(axis_words, scale, absolute, wco)
+        i0, i1 = self.axes.index(a0), self.axes.index(a1)
+        x, y = target[i0] - self.position[i0], target[i1] - self.position[i1]
+        if "R" in values:
+            used.add("R")
+            r = values["R"] * scale
+            if x == 0 and y == 0:
+                raise GrblError(33)
+            h2 = 4.0 * r * r - x * x - y * y
+            if h2 < 0:
+                raise GrblError(33)
+            h = -math.sqrt(h2) / math.hypot(x, y)
+            if not clockwise:
+                h = -h
+            if r < 0:
+                h = -h
+            offsets = (0.5 * (x - y * h), 0.5 * (y + x * h))
+        else:
+            l0, l1 = offset_letter[a0], offset_letter[a1]
+            if l0 not in values and l1 not in values:
+                raise GrblError(35)
+            used.update(letter for letter in (l0, l1) if letter in values)
+            offsets = (values.get(l0, 0.0) * scale, values.get(l1, 0.0) * scale)
+            r = math.hypot(*offsets)
+            delta = abs(math.hypot(x - offsets[0], y - offsets[1]) - r)
+            if delta > 0.005 and (delta > 0.5 or delta > 0.001 * r):
+                raise GrblError(33)
+        tol = self.arc_tolerance
+
+        def segments(angle, radius):
+            if 2 * radius <= tol:
+                return 1
+            return math.floor(abs(0.5 * angle * radius) / math.sqrt(tol * (2 * radius - tol)))
+        return arc_points(self.position, target, i0, i1, offsets, clockwise, segments)
 
     def _target(self, axis_words, scale, absolute, wco, machine=False):
         target = list(self.position)

@@ -15,11 +15,13 @@ blocks, ``echo:busy: processing`` comes every 2 s.  Unknown commands get
 
 import enum
 import logging
+import math
 import re
 from collections import deque
 
 from .. import marlin as mc
 from .gcode_base import EPS, GcodeFirmware, Power
+from .motion import arc_points
 
 __all__ = ["MarlinEmulator", "MarlinState"]
 
@@ -206,6 +208,40 @@ class MarlinEmulator(GcodeFirmware):
         return self._queue_task([tuple(target)], rapid=False, feed=self.feed)
 
     _G1 = _G0
+
+    def _G2(self, p, clockwise=True):
+        """Arc in the XY plane (radius or I/J offsets), cut into 1 mm segments."""
+        if p.get("F"):
+            self.feed = p["F"] * self.scale
+        start, target = self._planned(), self._planned()
+        for i, axis in enumerate(self.axes):
+            if p.get(axis) is not None:
+                value = p[axis] * self.scale
+                target[i] = target[i] + value if self.relative else value - self.shift[i]
+        i0, i1 = self.axes.index("X"), self.axes.index("Y")
+        offset = (0.0, 0.0)
+        if p.get("R"):
+            r = p["R"] * self.scale
+            dx, dy = target[i0] - start[i0], target[i1] - start[i1]
+            d = math.hypot(dx, dy)
+            if d:
+                e = -1.0 if clockwise ^ (r < 0) else 1.0
+                h2 = (r - 0.5 * d) * (r + 0.5 * d)
+                h = math.sqrt(h2) if h2 >= 0 else 0.0
+                cx = (start[i0] + target[i0]) / 2 + e * h * (-dy / d)
+                cy = (start[i1] + target[i1]) / 2 + e * h * (dx / d)
+                offset = (cx - start[i0], cy - start[i1])
+        else:
+            offset = ((p.get("I") or 0.0) * self.scale, (p.get("J") or 0.0) * self.scale)
+        if offset == (0.0, 0.0):
+            self._emit("Error:G2/G3 bad parameters")
+            return 0
+        points = arc_points(start, target, i0, i1, offset, clockwise,
+                            lambda angle, radius: math.floor(abs(angle * radius) / 1.0))
+        return self._queue_task(points, rapid=False, feed=self.feed)
+
+    def _G3(self, p):
+        return self._G2(p, clockwise=False)
 
     def _G4(self, p):
         seconds = (p.get("P") or 0.0) / 1000.0 if p.get("S") is None else p["S"]

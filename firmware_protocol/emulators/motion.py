@@ -249,3 +249,34 @@ class MotionQueue:
                 break               # hold complete
             break
         return done
+
+
+def arc_points(start, target, i0, i1, center_offset, clockwise, segments_for):
+    """Points along a G2/G3 arc in the plane of axes ``i0``, ``i1`` (other axes move linearly).
+
+    ``center_offset`` is (offset0, offset1) from ``start`` to the centre;
+    ``segments_for(angular_travel, radius)`` says how many straight segments
+    to cut it into.  The last point is ``target`` exactly.
+    """
+    off0, off1 = center_offset
+    c0, c1 = start[i0] + off0, start[i1] + off1
+    r0, r1 = -off0, -off1
+    t0, t1 = target[i0] - c0, target[i1] - c1
+    angle = math.atan2(r0 * t1 - r1 * t0, r0 * t0 + r1 * t1)
+    if clockwise:
+        if angle >= -5e-7:
+            angle -= 2 * math.pi
+    elif angle <= 5e-7:
+        angle += 2 * math.pi
+    radius = math.hypot(off0, off1)
+    n = max(int(segments_for(angle, radius)), 1)
+    points = []
+    for k in range(1, n):
+        f = k / n
+        theta = angle * f
+        p = [a + (b - a) * f for a, b in zip(start, target)]
+        p[i0] = c0 + r0 * math.cos(theta) - r1 * math.sin(theta)
+        p[i1] = c1 + r0 * math.sin(theta) + r1 * math.cos(theta)
+        points.append(tuple(p))
+    points.append(tuple(target))
+    return points
