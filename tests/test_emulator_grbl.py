@@ -148,14 +148,16 @@ def test_receive_buffer_overflow_when_the_host_oversends():
     fill = b"".join(b"G1 X%d F6000\n" % (10 * (i + 1)) for i in range(16))
     emu.receive(fill)
     assert emu.transmit() == OK * 15               # blocked on the 16th line
-    # 11 lines of 12 bytes = 132 bytes: 127 fit, the rest is dropped on the floor
+    # 11 lines of 12 bytes = 132 bytes: 128 fit, the rest is dropped on the floor
     burst = b"".join(b"G1 Y%d F1000\n" % (i % 10) for i in range(11))
     assert len(burst) == 132
     emu.receive(burst)
-    assert emu.dropped_bytes == 5
+    assert emu.dropped_bytes == 4
+    emu.settings[10] = 3                # buffer state on: nothing free in the planner or the RX buffer
+    assert "|Bf:0,0|" in emu.status_report()
     run_exchange(emu, [(b"", OK)])      # a block ends: the 16th line is queued, the next one blocks
-    # "G1 Y0 F" of the 11th line arrived, its tail "1000\n" did not: the next line merges with it
-    run_exchange(emu, [(b"$G\n", OK * 10 + b"error:2\r\n")])
+    # "G1 Y0 F1" of the 11th line arrived, its tail "000\n" did not: the next line merges with it
+    run_exchange(emu, [(b"$G\n", OK * 10 + b"error:1\r\n")])
 
 
 def test_feed_hold_resume_and_soft_reset_while_moving():

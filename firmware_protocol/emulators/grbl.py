@@ -3,7 +3,7 @@
 What the host sees is what GRBL's own documentation describes
 (``doc/markdown/interface.md``): the banner after every reset, one ``ok`` or
 ``error:N`` per line, realtime ``?`` ``!`` ``~`` 0x18 picked off the stream at
-once, status reports, alarms.  The receive buffer is GRBL's: 127 bytes fit
+once, status reports, alarms.  The receive buffer is GRBL's: 128 bytes fit
 (``Bf:`` says 128 free when empty); while the firmware is blocked (planner full,
 dwell, homing) the bytes a host oversends beyond that are dropped, and the
 mangled line that results is answered with an error.  The planner holds 15
@@ -110,7 +110,7 @@ class GrblEmulator(GcodeFirmware):
                     self._pump()
                     self._jog_cancel()
                 # overrides (0x90..0xA4) and the door are accepted and ignored; others are discarded
-            elif len(self._rx) < self.variant.rx_size - 1:
+            elif len(self._rx) < self.variant.rx_size:      # GRBL's ring has one spare slot: all 128 fit
                 self._rx.append(c)
                 if c in (0x0A, 0x0D):
                     self._pump()
