@@ -119,3 +119,15 @@ def test_simulate_command_names_a_bad_option(tmp_path):
                           text=True, timeout=20)
     assert proc.returncode == 2
     assert "bad fault 'reset@'" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_realtime_mode_on_a_pty_takes_wall_clock_time(serve):
+    server, world, path = serve(realtime=True)
+    port = serial.Serial(path, 115200, timeout=3)
+    assert port.read(len(BANNER)) == BANNER
+    t0 = time.monotonic()
+    port.write(b"G0 Y3\nG4 P0\n")                      # 3 mm at 500 mm/s^2: about 0.155 s
+    assert port.readline() == b"ok\r\n" and port.readline() == b"ok\r\n"
+    assert 0.1 < time.monotonic() - t0 < 2.0
+    assert world.head_mm == 3.0
+    port.close()

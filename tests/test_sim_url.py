@@ -162,3 +162,17 @@ def test_realtime_mode_takes_wall_clock_time(tmp_path):
     assert lines(port, 2) == [b"ok\r\n", b"ok\r\n"]
     assert 0.1 < time.monotonic() - t0 < 1.5
     port.close()
+
+
+def test_machine_by_path_and_marlin_through_the_url(tmp_path):
+    from pathlib import Path
+
+    from firmware_protocol.machine import load_machine
+    path = Path(load_machine("marlin-ring").path)
+    port = serial.serial_for_url(f"sim://?machine={path}&record={tmp_path / 'm.json'}", timeout=0.5)
+    assert port.readline() == b"start\n"
+    port.reset_input_buffer()
+    from firmware_protocol.marlin import numbered
+    port.write("".join(numbered(n, c) + "\n" for n, c in enumerate(["M110 N0", "G0 Y19", "M400"])).encode())
+    assert [port.readline() for _ in range(3)] == [b"ok\n"] * 3
+    port.close()
