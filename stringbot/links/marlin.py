@@ -43,17 +43,17 @@ class MarlinLink(LineLink):
     dialect = "marlin"
 
     def __init__(self, port, dialect="marlin", *, sync_line="M400", response_timeout=3.0,
-                 motion_timeout=600.0, max_resends=5, hold_line="M410"):
+                 motion_timeout=600.0, max_resends=5):
         super().__init__(port, response_timeout=response_timeout)
         self.sync_line = sync_line
         self.motion_timeout = motion_timeout
         self.max_resends = max_resends
-        self.hold_line = hold_line
         self.line_number = 0
         self.resends = 0
         self.last_position = None
         self._history = {}
         self._swallow = 0
+        self._awaiting = None
 
     # ---- identification --------------------------------------------------------------
     def identify(self):
@@ -164,8 +164,11 @@ class MarlinLink(LineLink):
         self._history[n] = text
         self._transmit(n, text, where)
         self.line_number = n + 1
-        self._await(n, where, timeout)
+        answered = self._await(n, where, timeout)
         self._history.pop(n - 8, None)
+        if not answered and text == self.sync_line:
+            # an M400 known only to have arrived may still be waiting on motion: ask again
+            self._send(text, where, timeout)
 
     def _transmit(self, n, text, where):
         wire = numbered(n, text)
@@ -179,6 +182,12 @@ class MarlinLink(LineLink):
         Marlin follows every ``Resend: k`` with an ``ok`` that answers nothing;
         ``self._swallow`` counts those still to come.
         """
+        self._awaiting = (n, where)
+        answered = self._await_inner(n, where, timeout)
+        self._awaiting = None
+        return answered
+
+    def _await_inner(self, n, where, timeout):
         deadline = time.monotonic() + timeout
         silence = time.monotonic() + self.response_timeout
         probes = 0
@@ -202,14 +211,14 @@ class MarlinLink(LineLink):
                 if self._swallow:
                     self._swallow -= 1
                     continue
-                return
+                return True
             m = _RESEND.match(line)
             if m:
                 want = int(m.group(1))
                 self.resends += 1
                 self._swallow += 1
                 if want == n + 1:
-                    return             # it had line n (its answer was lost)
+                    return False       # it had line n (its answer was lost): received, maybe not done
                 if want != n or self.resends > self.max_resends * 1000:
                     raise self.fail(f"the machine asked to resend line {want}, but line {n} was sent",
                                     where)
@@ -240,19 +249,19 @@ class MarlinLink(LineLink):
             raise self.fail(f"the machine answered garbage: {line[:60]!r}", where)
 
     # ---- stopping --------------------------------------------------------------------
-    def hold(self, timeout=30.0):
-        """Stop: Marlin's emergency parser takes ``M410`` (quickstop) at once."""
+    def hold(self, timeout=None):
+        """Stop in a controlled way: let the one line in flight finish (the link never has more
+        than one), so the machine stands still at a known point with its position kept.
+
+        (Marlin's quickstop ``M410`` would lose steps; its ``P000`` needs the emergency parser.)
+        """
         self.state = LinkState.HOLDING
-        self.write(self.hold_line.encode("ascii") + b"\n")
-        self.drain_input(quiet=0.2, limit=2.0)
+        pending = self._awaiting
+        if pending is not None:
+            n, where = pending
+            self._await(n, where, timeout or self.motion_timeout)
         from .base import Status
-        return Status(state="Hold", sub="0")
+        return Status(state="Idle", mpos=self.last_position)
 
     def stop_quietly(self, hold=True):
-        state = self.state
-        try:
-            if hold:
-                self.write(self.hold_line.encode("ascii") + b"\n")
-        except Exception:
-            pass
-        self.state = state
+        """Nothing to do: at most one line is ever queued, and it is the one that failed."""

@@ -217,7 +217,7 @@ class Winder:
         step, pin = self._current()
         self._stop_record("interrupted", "interrupted by the operator (Ctrl-C)", status)
         where = f"pin {pin}, step {step} of {len(self.steps)}" if step else "the end"
-        raise Interrupted(f"interrupted at {where}: the machine is stopped (feed hold); "
+        raise Interrupted(f"interrupted at {where}: the machine is stopped; "
                           f"{self.done} of {len(self.steps)} steps done") from None
 
     def _failed(self, exc):

@@ -157,6 +157,8 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=N
     if from_step is not None and not 1 <= from_step <= len(steps):
         raise BadInput(f"--from-step is {from_step}; expected a step 1..{len(steps)}")
     s, m = _journal_point(state)
+    if s < len(steps) and m >= len(steps[s].moves):
+        s, m = s + 1, 0               # only the step's dwell was left: its moves are all done
     journal = Journal.reopen(job.journal_path, durable=not job.fresh_world)
     link = None
     try:
