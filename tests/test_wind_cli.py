@@ -1,0 +1,97 @@
+"""``stringbot wind``: exit codes 0/1/2/130, one line on stderr, the record of a dry run."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from stringbot.cli import main
+from stringbot.planner import write_plan
+
+from test_wind_sim import small_plan
+
+
+def run(argv, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    out, err = capsys.readouterr()
+    return info.value.code, out, err
+
+
+@pytest.fixture
+def plan_path(tmp_path):
+    path = tmp_path / "plan.json"
+    write_plan(small_plan(n=10, seed=7), path)
+    return path
+
+
+def error_lines(err):
+    return [x for x in err.splitlines() if x.startswith("stringbot:")]
+
+
+def test_dry_run_winds_the_plan_and_exits_0(tmp_path, plan_path, capsys):
+    record = tmp_path / "rec.json"
+    code, out, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes",
+                          "--record", str(record)], capsys)
+    assert code == 0, err
+    assert "wound 10 pins" in out and "pins/s" in out
+    rec = json.loads(record.read_text())
+    assert [w["pin"] for w in rec["wraps"]] == small_plan(n=10, seed=7).sequence
+    assert rec["collisions"] == []
+
+
+def test_status_shows_the_journal(tmp_path, plan_path, capsys):
+    run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes"], capsys)
+    code, out, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--status"], capsys)
+    assert code == 0
+    assert "finished: all 10 steps done" in out
+
+
+def test_machine_failure_exits_1_with_one_line_naming_pin_step_and_resume(tmp_path, plan_path, capsys):
+    code, out, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes",
+                          "--faults", "error@20"], capsys)
+    assert code == 1
+    lines = error_lines(err)
+    assert len(lines) == 1 and "Traceback" not in err
+    assert "error:20" in lines[0] and "pin " in lines[0] and "step " in lines[0]
+    assert "--resume" in lines[0]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--machine", "grbl-ring", "--port", "/dev/ttyNOPE_stringbot"], "does not exist"),
+    (["--machine", "no-such-machine"], "no-such-machine"),
+    (["--machine", "grbl-ring", "--faults", "boom@3"], "boom@3"),
+    (["--machine", "grbl-ring", "--port", "/dev/ttyNOPE", "--record", "r.json"], "simulated machine"),
+    (["--machine", "grbl-ring", "--resume"], "nothing to resume"),
+    (["--machine", "grbl-ring", "--from-step", "0"], "--from-step"),
+])
+def test_bad_input_exits_2_with_one_line(tmp_path, plan_path, capsys, args, words):
+    code, out, err = run(["wind", str(plan_path), "--yes", "--journal", str(tmp_path / "j")] + args, capsys)
+    assert code == 2, err
+    lines = error_lines(err)
+    assert len(lines) == 1 and "Traceback" not in err
+    assert words in lines[0]
+
+
+def test_missing_plan_exits_2(tmp_path, capsys):
+    code, out, err = run(["wind", str(tmp_path / "nope.json"), "--machine", "grbl-ring", "--yes"], capsys)
+    assert code == 2 and "does not exist" in err
+
+
+def test_ctrl_c_exits_130_with_the_resume_command(tmp_path, plan_path):
+    """A real SIGINT to a realtime dry run: feed hold, one line, exit 130."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    cmd = [sys.executable, "-c", "import sys; from stringbot.cli import main; main(sys.argv[1:])",
+           "wind", str(plan_path), "--machine", "grbl-ring", "--yes", "--realtime"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
+    time.sleep(2.5)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    lines = error_lines(err)
+    assert len(lines) == 1 and "Traceback" not in err
+    assert "interrupted at pin" in lines[0] and "--resume" in lines[0]
