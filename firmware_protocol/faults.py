@@ -1,8 +1,10 @@
 """Faults the simulated machine can suffer, and when: ``kind@N`` with N the line count.
 
 N counts the lines the firmware has received since it was created (1 = the
-first line; every line end counts, empty lines and ``$`` commands too; the
-count survives resets and power cycles, so ``reset@5,reset@9`` fires twice).
+first line; GRBL counts every line end, empty lines and ``$`` commands too,
+Marlin every non-empty line; the count survives resets and power cycles, so
+``reset@5,reset@9`` fires twice).  Dynamixel machines have their own faults
+(see ``docs/dynamixel.md``).
 Each fault fires once, when line N has arrived complete:
 
 ``garble``
