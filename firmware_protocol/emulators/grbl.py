@@ -24,7 +24,7 @@ import logging
 
 from ..grbl import UNLOCK_MESSAGE
 from .gcode_base import EPS, GcodeFirmware, Power, physical_home
-from .grbl_parser import GrblError, GrblParser, fmt, read_words
+from .grbl_parser import GrblError, GrblParser, fmt
 from .grbl_system import GRBL, GRBLHAL, default_settings, format_settings, store_setting
 
 __all__ = ["GrblState", "GrblEmulator", "GrblHalEmulator", "physical_home", "Power"]
@@ -395,9 +395,6 @@ class GrblEmulator(GcodeFirmware):
         if code == 0:
             self.apply_settings()
         return code
-
-    def jog_words(self, text):
-        return read_words(text)
 
 
 class GrblHalEmulator(GrblEmulator):
