@@ -52,6 +52,25 @@ def replay_counts(text, machine):
     return world, lo, hi
 
 
+def emulated_seconds(text, machine):
+    """Send the job line by line to the simulated firmware: (virtual seconds, refused lines, world)."""
+    from firmware_protocol.emulators.factory import build_emulator
+    from test_gcode_on_emulators import send
+    emu, world = build_emulator(machine)
+    for _ in range(100):            # let it boot (banner)
+        if not emu.busy:
+            break
+        emu.advance(None)
+    emu.transmit()
+    t0, refused = emu.now, 0
+    for raw in text.splitlines():
+        line = raw.split(";", 1)[0].strip()
+        if line:
+            answer = send(emu, line).lower()
+            refused += "error" in answer or "unknown command" in answer or "ok" not in answer
+    return emu.now - t0, refused, world
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--machine", default="grbl-ring")
@@ -59,6 +78,7 @@ def main():
     default_image = Path("/work/shared/images/camera.png")
     ap.add_argument("--image", default=str(default_image if default_image.exists() else ROOT / "examples/camera.png"))
     ap.add_argument("--all-machines", action="store_true", help="also print the figures on every G-code machine")
+    ap.add_argument("--emulate", action="store_true", help="also run the job on the emulated firmware")
     args = ap.parse_args()
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -89,6 +109,13 @@ def main():
         print(f"  ring axis range       {lo:.1f} .. {hi:.1f} deg (bound +-{machine['ring.travel_deg']:g})")
         print(f"  replay on the world   {len(world.wraps)} wraps, exactly the plan: {exact}; "
               f"collisions: {len(world.collisions)}")
+        if args.emulate:
+            t0 = time.perf_counter()
+            secs, refused, ew = emulated_seconds(text, machine)
+            print(f"  emulated firmware     {format_duration(secs)} of virtual time ({secs:.0f} s; estimate "
+                  f"{est.seconds:.0f} s); lines refused: {refused}; wraps exact: "
+                  f"{[w.pin for w in ew.wraps] == list(plan.sequence)}; collisions: {len(ew.collisions)} "
+                  f"({time.perf_counter() - t0:.1f} s wall)")
         print("  json " + json.dumps({"machine": name, "gcode_lines": text.count("\n"), **est.as_dict(),
                                       "collisions": len(world.collisions), "exact": exact}))
 
