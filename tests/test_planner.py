@@ -8,8 +8,8 @@ import pytest
 
 from stringbot.errors import BadInput
 from stringbot.planner.build import auto_lines, plan_picture, thread_length
-from stringbot.planner.chords import (chord_pixels, chord_space, line_pixels, neighbour_offsets,
-                                      pin_positions)
+from stringbot.planner.chords import (chord_pixels, chord_space, line_pixels, pin_positions,
+                                      pixel_chords)
 from stringbot.planner.fitness import frame_mask, solve_fitness
 from stringbot.planner.greedy import greedy_sequence
 from stringbot.planner.image import Picture
@@ -102,6 +102,15 @@ def test_line_pixels_are_the_nearest_pixels_to_the_segment():
         assert np.abs(r - (r0 + t * (r1 - r0))).max() <= 0.5 + 1e-6
         assert np.abs(c - (c0 + t * (c1 - c0))).max() <= 0.5 + 1e-6
         start += n
+
+
+def test_pixel_major_is_the_transpose_of_chord_major():
+    space = chord_space(20)
+    indptr, indices = chord_pixels(space, 41)
+    rowptr, chords = pixel_chords(space, 41)
+    pairs_a = {(int(p), c) for c in range(space.m) for p in indices[indptr[c]:indptr[c + 1]]}
+    pairs_b = {(p, int(c)) for p in range(41 * 41) for c in chords[rowptr[p]:rowptr[p + 1]]}
+    assert pairs_a == pairs_b
 
 
 def test_chord_cache_is_reused_and_a_damaged_one_rebuilt(tmp_path, monkeypatch):
@@ -231,7 +240,8 @@ def test_solve_matches_dense_least_squares():
     v = 1 + 4 * rng.random(space.m)
     want = np.linalg.lstsq(np.vstack([w[:, None] * A, np.diag(v)]),
                            np.concatenate([w * b, np.zeros(space.m)]), rcond=None)[0]
-    got, info = solve_fitness(indptr, indices, b, w, v, n_pixels=size * size, iterations=500, tol=1e-10)
+    rowptr, chords = pixel_chords(space, size, cache=False)
+    got, info = solve_fitness(rowptr, chords, b, w, v, iterations=500, tol=1e-10)
     assert np.abs(got - want).max() < 1e-3 * np.abs(want).max()
 
 
@@ -358,3 +368,18 @@ def test_render_draws_each_chord_black_on_white():
     rc = np.rint(plan.pin_xy[plan.sequence][:, ::-1] * 200).astype(int)
     assert (img[rc[:, 0], rc[:, 1]] == 0).all()
     assert (img == 0).mean() < 0.5
+
+
+def test_edge_term_suppresses_chords_that_cross_edges():
+    from stringbot.planner.fitness import edge_consistency, gradients
+
+    size, P = 101, 40
+    g = np.full((size, size), 255.0)
+    g[:, : size // 2] = 0.0  # one vertical edge through the middle
+    space = chord_space(P)
+    rowptr, chords = pixel_chords(space, size)
+    gy, gx = gradients(g)
+    d = edge_consistency(space, rowptr, chords, gy, gx)
+    along = space.index[0, P // 2]            # top to bottom: runs along the edge
+    across = space.index[P // 4, 3 * P // 4]  # right to left: crosses it
+    assert d[across] > 0 and d[along] < 0.1 * d[across]

@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from ..errors import BadInput
-from .chords import chord_pixels, chord_space
+from .chords import chord_pixels, chord_space, pixel_chords
 from .image import read_mask, read_picture
 from .plan_file import Plan
 
@@ -27,7 +27,7 @@ __all__ = ["plan_picture", "auto_lines", "check_knobs", "DEFAULTS", "MAX_PINS"]
 
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").
 DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
-            "iterations": 40, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
+            "iterations": 25, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
 MIN_SIZE, MAX_SIZE = 32, 2001
@@ -116,10 +116,15 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     mask = frame_mask(size, frame)
     k = auto_lines(pic.gray, mask) if lines == "auto" else int(lines)
     space = chord_space(pins, frame)
-    indptr, indices = chord_pixels(space, size, cache=cache)
+    if method == "greedy":
+        indptr, indices = chord_pixels(space, size, cache=cache)
+        nnz = len(indices)
+    else:
+        rowptr, chords_of_pixel = pixel_chords(space, size, cache=cache)
+        nnz = len(chords_of_pixel)
     t_chords = time.perf_counter()
     stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m),
-             "pixels_per_chord": round(float(len(indices) / max(space.m, 1)), 2)}
+             "pixels_per_chord": round(float(nnz / max(space.m, 1)), 2)}
     params = {"pins": pins, "frame": frame, "size": size, "crop": pic.crop, "lines": lines, "lines_target": k,
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
               "gray": pic.gray_method if pic.gray_method != "gray" else "gray",
@@ -142,10 +147,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         gy, gx = gradients(inv)
         b = (1.0 - alpha) * inv + alpha * np.hypot(gx, gy)
         w = mask.astype(np.float32) if weights is None else np.where(mask, weights, 0).astype(np.float32)
-        d = edge_consistency(space, size, indptr, indices, gy, gx) if gamma > 0 else np.zeros(space.m)
+        d = edge_consistency(space, rowptr, chords_of_pixel, gy, gx) if gamma > 0 else np.zeros(space.m)
         v = chord_weights(space, d, beta=beta, gamma=gamma)
-        f, info = solve_fitness(indptr, indices, b.ravel(), w.ravel(), v, n_pixels=size * size,
-                                iterations=iterations)
+        f, info = solve_fitness(rowptr, chords_of_pixel, b.ravel(), w.ravel(), v, iterations=iterations)
+        del rowptr, chords_of_pixel
         t_solve = time.perf_counter()
         stats.update(lsqr_iterations=info["iterations"], lsqr_residual=round(info["residual"], 3),
                      fitness_min=round(float(f.min()), 4), fitness_max=round(float(f.max()), 4),

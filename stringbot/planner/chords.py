@@ -27,7 +27,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["pin_positions", "ChordSpace", "chord_space", "chord_pixels", "cache_dir",
+__all__ = ["pin_positions", "ChordSpace", "chord_space", "chord_pixels", "pixel_chords", "cache_dir",
            "neighbour_offsets", "line_pixels"]
 
 FRAMES = ("circle", "square")
@@ -206,11 +206,26 @@ def cache_dir():
     return Path(base) / "stringbot"
 
 
-def _cache_file(space, size):
+def _cache_file(space, size, kind="chords"):
     d = cache_dir()
     if d is None:
         return None
-    return d / f"chords-v{_CACHE_VERSION}-{space.frame}-{space.pins}-{size}.npz"
+    return d / f"{kind}-v{_CACHE_VERSION}-{space.frame}-{space.pins}-{size}.npz"
+
+
+def _read_cache(path, n_ptr):
+    if path is None or not path.is_file():
+        return None
+    try:
+        with np.load(path) as z:
+            indptr, indices = z["indptr"], z["indices"]
+        if len(indptr) == n_ptr and indptr[-1] == len(indices):
+            log.debug("read %s", path)
+            return indptr, indices
+        log.warning("cache %s does not fit; rebuilding", path)
+    except (OSError, ValueError, KeyError, EOFError) as exc:  # a damaged cache is rebuilt
+        log.warning("cache %s unreadable (%s); rebuilding", path, exc)
+    return None
 
 
 def chord_pixels(space, size, *, cache=True):
@@ -231,15 +246,9 @@ def chord_pixels(space, size, *, cache=True):
         Chord ``c`` covers flat pixels ``indices[indptr[c]:indptr[c + 1]]``.
     """
     path = _cache_file(space, size) if cache else None
-    if path is not None and path.is_file():
-        try:
-            with np.load(path) as z:
-                indptr, indices = z["indptr"], z["indices"]
-            if len(indptr) == space.m + 1 and indptr[-1] == len(indices):
-                log.debug("chord pixels from cache %s", path)
-                return indptr, indices
-        except (OSError, ValueError, KeyError) as exc:  # a damaged cache is rebuilt
-            log.warning("chord cache %s unreadable (%s); rebuilding", path, exc)
+    hit = _read_cache(path, space.m + 1)
+    if hit is not None:
+        return hit
     rc = pin_pixels(space.pin_xy, size)
     i, j = space.ends[:, 0], space.ends[:, 1]
     counts, indices = line_pixels(rc[i, 0], rc[i, 1], rc[j, 0], rc[j, 1], size)
@@ -247,6 +256,34 @@ def chord_pixels(space, size, *, cache=True):
     if path is not None:
         _write_cache(path, indptr, indices)
     return indptr, indices
+
+
+def pixel_chords(space, size, *, cache=True):
+    """The chord-pixel incidence, pixel by pixel (the transpose of :func:`chord_pixels`).
+
+    Pixel-major order makes both sparse products of the solve gathers over
+    small vectors, about twice as fast as the chord-major layout.
+
+    Returns
+    -------
+    rowptr : ndarray of int64, shape (size * size + 1,)
+    chords : ndarray of int32, shape (rowptr[-1],)
+        Pixel ``p`` is covered by chords ``chords[rowptr[p]:rowptr[p + 1]]``.
+    """
+    path = _cache_file(space, size, "pixels") if cache else None
+    hit = _read_cache(path, size * size + 1)
+    if hit is not None:
+        return hit
+    import scipy.sparse as sp
+
+    indptr, indices = chord_pixels(space, size, cache=cache)
+    ones = np.ones(len(indices), dtype=np.int8)
+    csr = sp.csc_matrix((ones, indices, indptr), shape=(size * size, space.m)).tocsr()
+    rowptr, chords = csr.indptr.astype(np.int64), csr.indices.astype(np.int32, copy=False)
+    del csr, ones
+    if path is not None:
+        _write_cache(path, rowptr, chords)
+    return rowptr, chords
 
 
 def _write_cache(path, indptr, indices):

@@ -7,8 +7,17 @@ Minimise ``E(f) = ||W (A f - b)||^2 + ||V f||^2`` where
   in [0, 255] and ``|g|`` its gradient magnitude;
 * ``W = diag(w)``: 1 inside the frame (2 on important pixels), 0 outside;
 * ``V = diag(v)``, ``v_c = beta exp(-s_c / P) + gamma d_c / max(d)``, ``s_c``
-  the chord's span in pins and ``d_c`` the mean of ``|g_p x e_c|`` over its
-  pixels (``e_c`` its unit direction).
+  the chord's span in pins and ``d_c`` the mean over its pixels of the cross
+  product of the chord's unit direction ``e_c`` with the edge at the pixel.
+
+The edge term follows the paper's words: "the cross product gives larger
+result if the chord is not aligned with the edges.  Such chords are
+suppressed".  For that, the vector crossed with ``e_c`` must lie *along* the
+edge: the edge tangent ``t_p`` (the gradient ``g_p`` turned by 90 degrees,
+same length), so ``|t_p x e_c| = |g_p . e_c|``: zero for a chord running
+along an edge, ``|g_p|`` for one crossing it.  (Crossed with the gradient
+itself, the formula would suppress the chords that follow edges, the
+opposite of what the paper says the term is for.)
 
 The solve is LSQR on the stacked system ``[W A; V] f = [W b; 0]`` with the
 columns scaled to unit norm (a Jacobi preconditioner), in float32 sparse
@@ -50,8 +59,18 @@ def gradients(image):
     return gy.astype(np.float32), gx.astype(np.float32)
 
 
-def edge_consistency(space, size, indptr, indices, gy, gx):
-    """``d_c``: mean ``|g_p x e_c|`` over the pixels of each chord.
+def edge_consistency(space, rowptr, chords, gy, gx):
+    """``d_c``: mean ``|t_p x e_c| = |g_p . e_c|`` over the pixels of each chord.
+
+    ``t_p`` is the edge tangent (the gradient turned by 90 degrees); chords
+    crossing edges get large ``d``, chords along edges small (see the module notes).
+
+    Parameters
+    ----------
+    space : ChordSpace
+    rowptr, chords : ndarray
+        Pixel-major incidence (:func:`stringbot.planner.chords.pixel_chords`).
+    gy, gx : ndarray of float, shape (size, size)
 
     Returns
     -------
@@ -61,20 +80,22 @@ def edge_consistency(space, size, indptr, indices, gy, gx):
     e = xy[:, 1] - xy[:, 0]
     e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-12)
     ex, ey = e[:, 0].astype(np.float32), e[:, 1].astype(np.float32)
-    counts = np.diff(indptr)
-    gxf, gyf = gx.ravel(), gy.ravel()
-    out = np.empty(space.m)
-    # chunk over chords to bound the temporaries
-    step = max(1, int(4_000_000 // max(1, counts.mean())))
-    for a in range(0, space.m, step):
-        b = min(a + step, space.m)
-        lo, hi = indptr[a], indptr[b]
-        pix = indices[lo:hi]
-        seg = np.repeat(np.arange(b - a), counts[a:b])
-        cross = np.abs(gxf[pix] * ey[a:b][seg] - gyf[pix] * ex[a:b][seg])
-        sums = np.bincount(seg, weights=cross, minlength=b - a)
-        out[a:b] = sums / np.maximum(counts[a:b], 1)
-    return out
+    gxf, gyf = np.asarray(gx, np.float32).ravel(), np.asarray(gy, np.float32).ravel()
+    per_pixel = np.diff(rowptr)
+    sums = np.zeros(space.m)
+    counts = np.zeros(space.m)
+    n = len(per_pixel)
+    step = max(1, int(n * 4_000_000 // max(1, rowptr[-1])))  # ~4M entries per chunk
+    for a in range(0, n, step):
+        b = min(a + step, n)
+        cid = chords[rowptr[a]:rowptr[b]]
+        k = per_pixel[a:b]
+        val = np.repeat(gxf[a:b], k) * ex[cid]
+        val += np.repeat(gyf[a:b], k) * ey[cid]
+        np.abs(val, out=val)
+        sums += np.bincount(cid, weights=val, minlength=space.m)
+        counts += np.bincount(cid, minlength=space.m)
+    return sums / np.maximum(counts, 1)
 
 
 def chord_weights(space, d, *, beta, gamma):
@@ -89,19 +110,19 @@ def chord_weights(space, d, *, beta, gamma):
     return beta * np.exp(-space.span / space.pins) + gamma * edge
 
 
-def solve_fitness(indptr, indices, b, w, v, *, n_pixels, iterations=40, tol=1e-4):
+def solve_fitness(rowptr, chords, b, w, v, *, iterations=25, tol=1e-4):
     """Least-squares fitness ``argmin ||W (A f - b)||^2 + ||V f||^2``.
 
     Parameters
     ----------
-    indptr, indices : ndarray
-        Chord pixels (see :func:`stringbot.planner.chords.chord_pixels`).
+    rowptr, chords : ndarray
+        Pixel-major incidence: ``A`` has a 1 at ``(p, c)`` for ``c`` in
+        ``chords[rowptr[p]:rowptr[p + 1]]``.
     b : ndarray of float, shape (n_pixels,)
     w : ndarray of float, shape (n_pixels,)
         Pixel weights (0 outside the frame).
     v : ndarray of float, shape (m,)
         Chord weights.
-    n_pixels : int
     iterations : int
         LSQR iteration limit.
     tol : float
@@ -116,16 +137,16 @@ def solve_fitness(indptr, indices, b, w, v, *, n_pixels, iterations=40, tol=1e-4
     import scipy.sparse as sp
     from scipy.sparse.linalg import LinearOperator, lsqr
 
-    m = len(indptr) - 1
-    data = np.ones(len(indices), dtype=np.float32)
-    A = sp.csc_matrix((data, indices, indptr), shape=(n_pixels, m), copy=False)
-    AT = A.T  # csr view: a fast gather for the transposed product
+    n_pixels = len(rowptr) - 1
+    m = len(v)
+    data = np.ones(len(chords), dtype=np.float32)
+    A = sp.csr_matrix((data, chords, rowptr), shape=(n_pixels, m), copy=False)
+    AT = A.T  # csc view: the transposed product without a copy
     w32 = np.asarray(w, dtype=np.float32)
-    w2 = w32 * w32
     v = np.asarray(v, dtype=np.float64)
-    colnorm2 = np.asarray(AT @ w2, dtype=np.float64) + v * v
-    dscale = 1.0 / np.sqrt(np.maximum(colnorm2, 1e-12))
-    dv = (dscale * v)
+    colnorm2 = np.asarray(AT @ (w32 * w32), dtype=np.float64) + v * v
+    dscale = 1.0 / np.sqrt(np.maximum(colnorm2, 1e-12))  # unit columns: a Jacobi preconditioner
+    dv = dscale * v
 
     def matvec(x):
         x = np.asarray(x, dtype=np.float64).ravel()
