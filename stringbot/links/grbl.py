@@ -359,6 +359,9 @@ class GrblLink(LineLink):
             self._status(line)
         elif _BANNER.match(line):
             self.position_lost = True
+            if self.state is not LinkState.STREAMING and self.state is not LinkState.READY:
+                log.info("the firmware (re)started: %s", line)
+                return
             raise self.fail("the firmware reset itself mid-job (it printed its banner again); "
                             "its position may be lost")
         elif line.startswith(("[", "$", ">", "Grbl")):

@@ -205,7 +205,8 @@ def _recover_gcode(link, job, state, s, m, head_side, confirm):
     grbl = hasattr(proto, "flush")
     st = _settle(proto) if grbl else None                 # $I is refused while it moves or holds
     info = link.identify()
-    lost = any(is_banner(x) or x.strip() == "start" for x in list(said) + list(info.lines) if x)
+    lost = proto.position_lost or any(is_banner(x) or x.strip() == "start"
+                                      for x in list(said) + list(info.lines) if x)
     stop = state.last_stop
     if stop is not None and stop.get("position_lost") and not state_resumed_after(state, stop):
         lost = True

@@ -1,0 +1,135 @@
+"""End to end through a pseudo-terminal: ``stringbot simulate --pty`` in its own process,
+``stringbot wind --port PATH`` talking to it with the real pyserial port code.
+
+Also the host killed with SIGKILL mid-winding: ``--resume`` finishes the plan exactly.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from stringbot.planner import write_plan
+
+from test_wind_sim import small_plan
+
+STRINGBOT = [sys.executable, "-c", "import sys; from stringbot.cli import main; main(sys.argv[1:])"]
+
+
+class Simulator:
+    """``stringbot simulate`` in a subprocess, serving one machine on a pty."""
+
+    def __init__(self, tmp_path, machine, faults=None):
+        self.pty = tmp_path / "pty"
+        self.record = tmp_path / "rec.json"
+        cmd = STRINGBOT + ["simulate", "--machine", machine, "--pty", str(self.pty),
+                           "--record", str(self.record)]
+        if faults:
+            cmd += ["--faults", faults]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 30
+        while not self.pty.exists():
+            if self.proc.poll() is not None:
+                raise RuntimeError("simulator died: " + self.proc.stderr.read())
+            if time.monotonic() > deadline:
+                raise RuntimeError("simulator did not start")
+            time.sleep(0.05)
+
+    def wait_port(self, timeout=10):
+        deadline = time.monotonic() + timeout
+        while not os.path.exists(os.path.realpath(self.pty)) and time.monotonic() < deadline:
+            time.sleep(0.05)
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+
+    def wraps(self):
+        rec = json.loads(self.record.read_text())
+        return [w["pin"] for w in rec["wraps"]], rec["collisions"]
+
+
+@pytest.fixture
+def sim_factory(tmp_path):
+    sims = []
+
+    def make(machine, faults=None):
+        sim = Simulator(tmp_path, machine, faults)
+        sims.append(sim)
+        return sim
+    yield make
+    for sim in sims:
+        sim.stop()
+
+
+def wind(plan_path, machine, port, journal, *extra, timeout=120):
+    cmd = STRINGBOT + ["wind", str(plan_path), "--machine", machine, "--port", str(port), "--yes",
+                       "--journal", str(journal)] + list(extra)
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize("machine", ["grbl-ring", "grblhal-ring", "marlin-ring"])
+def test_wind_through_a_pty(tmp_path, sim_factory, machine):
+    plan = small_plan(n=14, seed=11)
+    write_plan(plan, tmp_path / "plan.json")
+    sim = sim_factory(machine)
+    done = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
+    assert done.returncode == 0, done.stderr
+    sim.stop()
+    pins, collisions = sim.wraps()
+    assert pins == plan.sequence and collisions == []
+
+
+@pytest.mark.parametrize("machine, faults", [("grbl-ring", "power@19"), ("marlin-ring", "disconnect@23"),
+                                             ("grblhal-ring", "reset@26")])
+def test_fault_through_a_pty_then_resume(tmp_path, sim_factory, machine, faults):
+    plan = small_plan(n=10, seed=12)
+    write_plan(plan, tmp_path / "plan.json")
+    sim = sim_factory(machine, faults)
+    first = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
+    assert first.returncode == 1, first.stderr
+    assert "--resume" in first.stderr
+    time.sleep(0.6)                              # the pty comes back after a pulled cable / power loss
+    sim.wait_port()
+    again = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j", "--resume", "--head-side", "in")
+    assert again.returncode == 0, again.stderr
+    sim.stop()
+    pins, collisions = sim.wraps()
+    assert pins == plan.sequence and collisions == []
+
+
+def test_host_killed_with_sigkill_then_resume(tmp_path, sim_factory):
+    """SIGKILL at a few moments of a longer winding; --resume each time until done."""
+    plan = small_plan(n=400, seed=13)
+    write_plan(plan, tmp_path / "plan.json")
+    sim = sim_factory("grbl-ring")
+    journal = tmp_path / "j"
+    kills = 0
+    resume = []
+    for delay in (1.2, 0.9, 1.1):
+        cmd = STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring", "--port",
+                           str(sim.pty), "--yes", "--journal", str(journal)] + resume
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGKILL)
+            kills += 1
+        proc.communicate()
+        resume = ["--resume"]
+    last = wind(tmp_path / "plan.json", "grbl-ring", sim.pty, journal, "--resume")
+    assert last.returncode == 0, last.stderr
+    sim.stop()
+    pins, collisions = sim.wraps()
+    assert kills >= 1
+    assert collisions == []
+    assert pins == plan.sequence
