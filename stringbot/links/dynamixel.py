@@ -104,10 +104,14 @@ class DynamixelLink:
         self._step_index = None
         self._velocity_limit = None   # the slowest servo's Velocity Limit (44), read by prepare
         self.on_move = None           # the wind loop's on_move(step, move_index) after each arrival
+        self._ref = {}                # id -> (ticks, exact value) last commanded or declared
         self.position_lost = False    # a servo lost torque: positions may be re-based until resumed
         self.info = None
         self._executed = []         # steps executed but not yet handed to the wind loop
         self._check_travel()
+        #: a servo within this many ticks of its goal, not moving, has arrived
+        self._arrival_ticks = {self.ids["ring"]: max(1, int(self.ring_ticks(machine.gap_tolerance_deg) / 4)),
+                               self.ids["head"]: max(1, abs(self.head_out - self.head_in) // 100)}
         self.bus = ServoBus(self.url, self.role, self._fail, protocol=c("protocol"), retries=retries)
 
     # ---- units ------------------------------------------------------------------------------
@@ -183,7 +187,7 @@ class DynamixelLink:
         expected = self.machine["controller.model_number"]
         for role, servo_id in self.ids.items():
             model = self.bus.ping(servo_id)
-            firmware = self._read(servo_id, "Firmware Version")
+            firmware = self.bus.read(servo_id, "Firmware Version", alert_ok=True)   # prepare reboots
             if expected is not None and model != expected:
                 raise self._fail(f"{self._name(servo_id)} is a {dx.MODELS.get(model, f'model {model}')} "
                                  f"(model number {model}); the machine file expects controller.model_number = "
@@ -236,6 +240,7 @@ class DynamixelLink:
             self._clear_turns()
         if resume_at is not None:
             self._rebase(resume_at[0], torque_was_on)
+            self._remember(*resume_at)
         for servo_id in (ring, head):
             self._write(servo_id, "Profile Acceleration", self.machine["controller.profile_acceleration"])
             self._write(servo_id, "Profile Velocity", self.machine["controller.profile_velocity"])
@@ -272,10 +277,37 @@ class DynamixelLink:
         log.warning("ring servo had lost its turn count (power loss or reboot): re-based by %d turns, "
                     "%d -> %d ticks (expected about %d)", turns, present, now, want)
 
+    @property
+    def position_tolerance(self):
+        """(ring_deg, head_mm): how far :meth:`position` may be from a planned point the servos
+        arrived at (the arrival tolerance plus half a tick of rounding)."""
+        ring, head = self.ids["ring"], self.ids["head"]
+        return ((self._arrival_ticks[ring] + 0.5) / self.tpt * 360.0 / self.gear,
+                (self._arrival_ticks[head] + 0.5) * abs(self.head_mm(self.head_out) - self.head_mm(self.head_in))
+                / abs(self.head_out - self.head_in))
+
     def position(self):
-        """The last position read back: (ring_deg, head_mm)."""
-        return (self.ring_deg(self.present.get(self.ids["ring"], 0)),
-                self.head_mm(self.present.get(self.ids["head"], self.head_in)))
+        """The last position read back with torque on: (ring_deg, head_mm).
+
+        An axis standing within its arrival tolerance of the point last commanded
+        (or declared) reports that point exactly, not its tick-rounded reading, so
+        that positions compare equal to the plan's.
+        """
+        out = []
+        for servo_id, to_units, default in ((self.ids["ring"], self.ring_deg, 0),
+                                            (self.ids["head"], self.head_mm, self.head_in)):
+            ticks = self.present.get(servo_id, default)
+            ref = self._ref.get(servo_id)
+            near = ref is not None and abs(ticks - ref[0]) <= self._arrival_ticks[servo_id]
+            out.append(ref[1] if near else to_units(ticks))
+        return tuple(out)
+
+    def _remember(self, ring_deg=None, head_mm=None):
+        """The exact point last commanded or declared, per axis."""
+        if ring_deg is not None:
+            self._ref[self.ids["ring"]] = (self.ring_ticks(ring_deg), float(ring_deg))
+        if head_mm is not None:
+            self._ref[self.ids["head"]] = (self.head_ticks(head_mm), float(head_mm))
 
     # ---- the wind loop's interface (stringbot.winding) ---------------------------------------
     def identify(self):
@@ -344,6 +376,7 @@ class DynamixelLink:
             raise self._fail(f"the head servo reads {here:.2f} mm, not the declared {head_mm:.2f} mm; "
                              "its position is absolute: check head_in_ticks/head_out_ticks")
         self._with_torque_off(lambda: self._rebase(ring_deg, False))
+        self._remember(ring_deg, head_mm)
         off = self.position()[0] - ring_deg
         if abs(off) > self.machine.pitch_deg / 2:
             log.warning("the ring is %.2f degrees from the declared %.2f: trusting its encoder", off, ring_deg)
@@ -407,6 +440,7 @@ class DynamixelLink:
         """
         ring, head = self.ids["ring"], self.ids["head"]
         goals = {ring: self.ring_ticks(ring_deg), head: self.head_ticks(head_mm)}
+        self._remember(ring_deg, head_mm)
         if not dx.EXTENDED_POSITION_MIN <= goals[ring] <= dx.EXTENDED_POSITION_MAX:
             raise self._fail(f"ring goal {ring_deg:.3f} deg = {goals[ring]} ticks is outside the servo's "
                              f"extended-position range +-{dx.EXTENDED_POSITION_MAX}")
@@ -441,8 +475,7 @@ class DynamixelLink:
     def _wait(self, changed, start):
         worst = max(abs(g - start.get(i, g)) for i, g in changed.items())
         deadline = time.monotonic() + 2.0 * self._estimate_s(worst) + self.arrival_slack_s
-        tol = {self.ids["ring"]: max(1, int(self.ring_ticks(self.machine.gap_tolerance_deg) / 4)),
-               self.ids["head"]: max(1, abs(self.head_out - self.head_in) // 100)}
+        tol = self._arrival_ticks
         while True:
             table = self._poll()
             arrived, limp = True, []

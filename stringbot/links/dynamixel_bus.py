@@ -150,12 +150,13 @@ class ServoBus:
         self._checked(servo_id, "ping", error, alert_ok=True)
         return model
 
-    def read(self, servo_id, name):
+    def read(self, servo_id, name, *, alert_ok=False):
+        """Read item ``name``; the Alert bit (a hardware error) fails it unless ``alert_ok``."""
         f = CT[name]
         call = {1: self.ph.read1ByteTxRx, 2: self.ph.read2ByteTxRx, 4: self.ph.read4ByteTxRx}[f.size]
         what = f"reading {name}"
         value, _, error = self._retry(servo_id, what, call, self.port, servo_id, f.address)
-        self._checked(servo_id, what, error, alert_ok=name == "Hardware Error Status")
+        self._checked(servo_id, what, error, alert_ok=alert_ok or name == "Hardware Error Status")
         if f.signed and value >= 1 << (8 * f.size - 1):
             value -= 1 << (8 * f.size)
         return value
