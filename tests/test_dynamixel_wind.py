@@ -227,34 +227,77 @@ def test_the_wind_loop_drives_the_servos_through_the_pty(machine, tmp_path):
     assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
 
 
-def test_stringbot_simulate_serves_the_sdk_through_port_path(machine, tmp_path):
-    """`stringbot simulate --machine dynamixel-ring --pty PATH` in its own process; the SDK opens PATH."""
-    import json
+def _simulate(tmp_path, *args):
+    """`stringbot simulate --machine dynamixel-ring --pty PATH ...` in its own process."""
     import os
-    import signal
     import subprocess
     import sys
     import time
+
+    pty = tmp_path / "dxl"
+    sim = subprocess.Popen([sys.executable, "-c", "from stringbot.cli import main; main()", "simulate",
+                            "--machine", "dynamixel-ring", "--pty", str(pty), *args],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for _ in range(200):
+        if os.path.islink(pty):
+            break
+        time.sleep(0.05)
+    return sim, str(pty)
+
+
+def _stop(sim):
+    import signal
+    sim.send_signal(signal.SIGINT)
+    return sim.communicate(timeout=10)
+
+
+def _stringbot(*args):
+    import subprocess
+    import sys
+    return subprocess.run([sys.executable, "-c", "from stringbot.cli import main; main()", *args],
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_stringbot_simulate_serves_the_sdk_through_port_path(machine, tmp_path):
+    """`stringbot simulate --machine dynamixel-ring --pty PATH` in its own process; the SDK opens PATH."""
+    import json
 
     from stringbot.planner import write_plan
     from stringbot.winding import load_job, wind_plan
 
     plan = make_plan(PLANS["long jumps"])
     write_plan(plan, tmp_path / "plan.json")
-    pty, record = tmp_path / "dxl", tmp_path / "world.json"
-    sim = subprocess.Popen([sys.executable, "-c", "from stringbot.cli import main; main()", "simulate",
-                            "--machine", "dynamixel-ring", "--pty", str(pty), "--record", str(record)],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    record = tmp_path / "world.json"
+    sim, pty = _simulate(tmp_path, "--record", str(record))
     try:
-        for _ in range(200):
-            if os.path.islink(pty):
-                break
-            time.sleep(0.05)
-        result = wind_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=str(pty)))
+        result = wind_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=pty))
     finally:
-        sim.send_signal(signal.SIGINT)
-        out, err = sim.communicate(timeout=10)
+        out, err = _stop(sim)
     assert result.steps_done == len(plan.sequence), err
+    doc = json.loads(record.read_text())
+    assert [w["pin"] for w in doc["wraps"]] == plan.sequence and doc["collisions"] == []
+
+
+def test_stringbot_wind_fails_on_a_power_loss_then_resumes_exactly(machine, tmp_path):
+    """The user's path: simulate with a fault, `wind --port` exits 1, `wind --port --resume` finishes."""
+    import json
+
+    from stringbot.planner import write_plan
+
+    plan = make_plan(PLANS["random"])
+    write_plan(plan, tmp_path / "plan.json")
+    record = tmp_path / "world.json"
+    sim, pty = _simulate(tmp_path, "--record", str(record), "--faults", "power@61")
+    try:
+        first = _stringbot("wind", str(tmp_path / "plan.json"), "--machine", "dynamixel-ring", "--port", pty,
+                           "--yes")
+        again = _stringbot("wind", str(tmp_path / "plan.json"), "--machine", "dynamixel-ring", "--port", pty,
+                           "--yes", "--resume")
+    finally:
+        _stop(sim)
+    assert first.returncode == 1 and "lost torque (power loss or reboot?)" in first.stderr
+    assert "--resume" in first.stderr and "Traceback" not in first.stderr
+    assert again.returncode == 0, again.stderr
     doc = json.loads(record.read_text())
     assert [w["pin"] for w in doc["wraps"]] == plan.sequence and doc["collisions"] == []
 
