@@ -242,7 +242,7 @@ def test_solve_matches_dense_least_squares():
                            np.concatenate([w * b, np.zeros(space.m)]), rcond=None)[0]
     rowptr, chords = pixel_chords(space, size, cache=False)
     got, info = solve_fitness(rowptr, chords, b, w, v, iterations=500, tol=1e-10)
-    assert np.abs(got - want).max() < 1e-3 * np.abs(want).max()
+    assert np.abs(got - want).max() < 2e-3 * np.abs(want).max()
 
 
 def test_fitness_is_high_on_chords_through_the_dark_bar():

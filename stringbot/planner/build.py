@@ -152,7 +152,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         f, info = solve_fitness(rowptr, chords_of_pixel, b.ravel(), w.ravel(), v, iterations=iterations)
         del rowptr, chords_of_pixel
         t_solve = time.perf_counter()
-        stats.update(lsqr_iterations=info["iterations"], lsqr_residual=round(info["residual"], 3),
+        stats.update(solve_iterations=info["iterations"], solve_residual=round(info["residual"], 3),
                      fitness_min=round(float(f.min()), 4), fitness_max=round(float(f.max()), 4),
                      solve_seconds=round(t_solve - t_chords, 3))
         table = fitness_table(space, f, T=T)

@@ -19,9 +19,10 @@ along an edge, ``|g_p|`` for one crossing it.  (Crossed with the gradient
 itself, the formula would suppress the chords that follow edges, the
 opposite of what the paper says the term is for.)
 
-The solve is LSQR on the stacked system ``[W A; V] f = [W b; 0]`` with the
-columns scaled to unit norm (a Jacobi preconditioner), in float32 sparse
-products.
+The solve is CGLS (conjugate gradients for least squares; the iterates of
+LSQR in exact arithmetic) on the stacked system ``[W A; V] f = [W b; 0]``
+with the columns scaled to unit norm (a Jacobi preconditioner), in float32
+sparse products.
 """
 
 import logging
@@ -124,9 +125,10 @@ def solve_fitness(rowptr, chords, b, w, v, *, iterations=25, tol=1e-4):
     v : ndarray of float, shape (m,)
         Chord weights.
     iterations : int
-        LSQR iteration limit.
+        Iteration limit.
     tol : float
-        LSQR ``atol`` and ``btol``.
+        Stop when the normal-equation residual has fallen by this factor
+        (at least 1e-5: the products are float32).
 
     Returns
     -------
@@ -135,7 +137,6 @@ def solve_fitness(rowptr, chords, b, w, v, *, iterations=25, tol=1e-4):
         ``iterations`` used and the final ``residual`` norm.
     """
     import scipy.sparse as sp
-    from scipy.sparse.linalg import LinearOperator, lsqr
 
     n_pixels = len(rowptr) - 1
     m = len(v)
@@ -148,19 +149,39 @@ def solve_fitness(rowptr, chords, b, w, v, *, iterations=25, tol=1e-4):
     dscale = 1.0 / np.sqrt(np.maximum(colnorm2, 1e-12))  # unit columns: a Jacobi preconditioner
     dv = dscale * v
 
-    def matvec(x):
-        x = np.asarray(x, dtype=np.float64).ravel()
-        top = w32 * (A @ (dscale * x).astype(np.float32))
-        return np.concatenate([top.astype(np.float64), dv * x])
+    def M(x):  # [W A D; V D] x, as (top, bottom)
+        return (w32 * (A @ (dscale * x).astype(np.float32))).astype(np.float64), dv * x
 
-    def rmatvec(y):
-        y = np.asarray(y, dtype=np.float64).ravel()
-        top = AT @ (w32 * y[:n_pixels].astype(np.float32))
-        return dscale * top.astype(np.float64) + dv * y[n_pixels:]
+    def MT(top, bottom):
+        return dscale * (AT @ (w32 * top.astype(np.float32))).astype(np.float64) + dv * bottom
 
-    op = LinearOperator((n_pixels + m, m), matvec=matvec, rmatvec=rmatvec, dtype=np.float64)
-    rhs = np.concatenate([np.asarray(w, dtype=np.float64) * np.asarray(b, dtype=np.float64), np.zeros(m)])
-    res = lsqr(op, rhs, atol=tol, btol=tol, iter_lim=int(iterations))
-    y, istop, itn, r1norm = res[0], res[1], res[2], res[3]
-    log.debug("lsqr: stop %d after %d iterations, residual %.4g", istop, itn, r1norm)
+    # CGLS (conjugate gradients on the normal equations, in the stable least-squares form;
+    # the same iterates as LSQR in exact arithmetic, without importing scipy.sparse.linalg)
+    y = np.zeros(m)
+    r_top = np.asarray(w, dtype=np.float64) * np.asarray(b, dtype=np.float64)
+    r_bot = np.zeros(m)
+    bnorm = np.linalg.norm(r_top)
+    s_ = MT(r_top, r_bot)
+    p = s_.copy()
+    gamma = s_ @ s_
+    gamma0 = gamma
+    floor_tol = max(float(tol), 1e-5)  # float32 products: no point (and no stability) beyond this
+    itn = 0
+    for itn in range(1, int(iterations) + 1):
+        q_top, q_bot = M(p)
+        qq = q_top @ q_top + q_bot @ q_bot
+        if qq <= 0:
+            break
+        alpha = gamma / qq
+        y += alpha * p
+        r_top -= alpha * q_top
+        r_bot -= alpha * q_bot
+        s_ = MT(r_top, r_bot)
+        gamma_new = s_ @ s_
+        if not np.isfinite(gamma_new) or gamma_new <= (floor_tol ** 2) * gamma0 or bnorm == 0:
+            break
+        p = s_ + (gamma_new / gamma) * p
+        gamma = gamma_new
+    r1norm = float(np.sqrt(r_top @ r_top + r_bot @ r_bot))
+    log.debug("cgls: %d iterations, residual %.4g", itn, r1norm)
     return dscale * y, {"iterations": int(itn), "residual": float(r1norm)}
