@@ -133,15 +133,21 @@ def test_ctrl_c_holds_and_resume_is_exact(machine):
         link = DynamixelLink(machine, server.path)
         link.identify()
         steps = hook_steps(plan, machine, start_ring_deg=link.prepare()[0])
-        signal.setitimer(signal.ITIMER_REAL, 0.08)
+        done = []
+
+        def executed(step):
+            done.append(step)
+            if len(done) == 3:                   # Ctrl-C lands a moment later, inside an exchange
+                signal.setitimer(signal.ITIMER_REAL, 0.01)
+
         with pytest.raises(KeyboardInterrupt):
-            link.execute(steps)
+            link.execute(steps, executed)
         status = link.hold()
         assert status.state == "Hold" and emu.ring.motion is None and emu.head.motion is None
         stop = link.stop_point()
-        done = link.take_executed()
+        done += link.take_executed()
         link.close()
-        assert 0 < len(done) < len(steps) and stop["step_index"] == len(done)
+        assert 0 < len(done) < len(steps) and stop["step_index"] in (len(done) - 1, len(done))
         assert status.mpos == (pytest.approx(world.ring_deg, abs=0.03), pytest.approx(world.head_mm, abs=0.03))
         resume(server, machine, steps, stop)
     finally:
@@ -356,3 +362,37 @@ def test_stringbot_resume_after_a_servo_fault_is_exact(machine, tmp_path, fault)
     assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
     steps = hook_steps(plan, machine)
     assert [w.direction for w in world.wraps] == [s.direction for s in steps]
+
+
+def test_ctrl_c_mid_move_then_stringbot_resume_is_exact(machine, tmp_path):
+    import signal
+
+    from stringbot.errors import Interrupted
+    from stringbot.planner import write_plan
+    from stringbot.winding import load_job, read_journal, wind_plan
+    from stringbot.winding.resume import resume_plan
+
+    plan = make_plan(PLANS["random"])
+    write_plan(plan, tmp_path / "plan.json")
+    server, emu, world = serve(machine)
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    def progress(p):
+        if p.done == 3:                          # winding under way: Ctrl-C lands a moment later
+            signal.setitimer(signal.ITIMER_REAL, 0.01)
+
+    old = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        with pytest.raises(Interrupted):
+            wind_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=server.path), progress=progress)
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        stopped = read_journal(tmp_path / "plan.json.journal").next_step
+        result = resume_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=server.path))
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+        server.close()
+    assert 0 < stopped < len(plan.sequence) and result.steps_done == len(plan.sequence)
+    assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
