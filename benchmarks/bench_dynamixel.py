@@ -107,7 +107,7 @@ def main():
     print(f"machine          {machine.name} ({len(plan.sequence)} pins wound, {plan.pins}-pin ring)")
     print(f"wall clock       {wall:.2f} s median of {len(runs)}  ->  {n / wall:.1f} pins/s through the SDK "
           f"on the pty (best {n / runs[0][0]:.1f}, worst {n / runs[-1][0]:.1f})")
-    print(f"polls            {polls / n:.1f} sync reads per pin ({polls / wall:.0f} exchanges/s)")
+    print(f"polls            {polls / n:.1f} position polls per pin ({polls / wall:.0f} polls/s)")
     print(f"machine time     {virtual:.0f} s virtual ({n / virtual:.2f} pins/s at the profile)")
     print(f"world            wraps == plan in every run: {ok}; collisions: {len(world['collisions'])}; "
           f"ring travel {world['ring_travel_deg']:.0f} deg")

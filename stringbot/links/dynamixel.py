@@ -477,7 +477,7 @@ class DynamixelLink:
         deadline = time.monotonic() + 2.0 * self._estimate_s(worst) + self.arrival_slack_s
         tol = self._arrival_ticks
         while True:
-            table = self._poll()
+            table = self._poll(changed)            # the servos that move (a sync read when both do)
             arrived, limp = True, []
             for servo_id, data in table.items():
                 hw = poll_field(data, "Hardware Error Status")
@@ -500,9 +500,9 @@ class DynamixelLink:
                                  for i in table if abs(self.present[i] - self.goal[i]) > tol[i])
                 raise self._fail(f"move did not arrive in time: {late or 'still moving'}")
 
-    def _poll(self):
-        """Torque, errors, Moving and positions of both servos (one sync read)."""
-        table = self.bus.poll(list(self.ids.values()))
+    def _poll(self, ids=None):
+        """Torque, errors, Moving and positions of the servos ``ids`` (default both)."""
+        table = self.bus.poll(list(self.ids.values()) if ids is None else list(ids))
         for servo_id, data in table.items():
             if poll_field(data, "Torque Enable"):   # torque off: the position may be re-based
                 self.present[servo_id] = poll_field(data, "Present Position")

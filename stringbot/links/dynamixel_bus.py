@@ -191,7 +191,16 @@ class ServoBus:
         self._retry(first, "sync-writing Goal Position", lambda: (group.txPacket(), 0))
 
     def poll(self, ids):
-        """One sync read of Torque Enable .. Present Position: ``{id: bytes}``."""
+        """Torque Enable .. Present Position of ``ids``: ``{id: bytes}`` (one read, or one sync read)."""
+        if len(ids) == 1:
+            [servo_id] = ids
+            what = "polling its position"
+            data, _, error = self._retry(servo_id, what, self.ph.readTxRx, self.port, servo_id,
+                                         POLL_START, POLL_LENGTH)
+            self.packets -= 1
+            self.polls += 1
+            self._checked(servo_id, what, error, alert_ok=True)   # the caller reads the error status
+            return {servo_id: bytes(data)}
         group = sdk.GroupSyncRead(self.port, self.ph, POLL_START, POLL_LENGTH)
         for servo_id in ids:
             group.addParam(servo_id)
