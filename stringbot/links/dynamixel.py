@@ -3,8 +3,9 @@
 The ring servo runs in Extended Position Control Mode (multi-turn), the head
 servo in Position Control Mode; both on one Protocol 2.0 bus.  Every move is
 written as Goal Position(s) and :meth:`DynamixelLink.run_step` returns only
-when the servos report Moving = 0 at their goals (read back with one sync
-read per poll), so a step that returned was executed.
+when the servos report Moving = 0 at their goals (read back by polling the
+servos that move: one read, or one sync read when both move), so a step that
+returned was executed.
 
 Failures are one clear :class:`~stringbot.errors.MachineFailure` each, naming
 the servo (role and id), the step and the pin: a servo that does not answer
