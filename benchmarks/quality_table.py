@@ -2,8 +2,9 @@
 
 For each picture: greedy with the paper's automatic line count, then fitness
 (and, with --disconnected, its chord-set variant) with exactly as many lines
-as greedy drew; both scored by SSIM (plain and blurred).  Prints a table and
-the average margins; with --sheet PATH writes a contact sheet
+as greedy drew; both scored by SSIM (plain and blurred).  Prints a table, the
+average margins and the share of short chords (span < pins / 30, the rim
+crowd the beta term is there to prevent); with --sheet PATH writes a contact sheet
 (source | greedy | fitness) for the README.
 
 Usage: python benchmarks/quality_table.py [--images DIR] [--sheet docs/contact-sheet.png] [--json]
@@ -19,6 +20,14 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_IMAGES = ROOT.parent / "shared" / "images"
+
+
+def short_share(plan, fraction=30):
+    """Share of chords spanning fewer than pins / fraction pins (10 of 300): the rim crowd."""
+    c = np.asarray(plan.chord_list())
+    d = np.abs(c[:, 0] - c[:, 1])
+    span = np.minimum(d, plan.pins - d)
+    return float(np.mean(span < plan.pins / fraction))
 
 
 def row_images(pic_gray, plans, frame, side):
@@ -81,6 +90,7 @@ def main():
             plans.append(plan_picture(path, pins=opts.pins, size=opts.size, lines=k, disconnected=True, picture=pic))
         scores = [score(p, pic.gray) for p in plans]
         r = {"image": path.name, "lines_auto": greedy.parameters["lines_target"], "lines": k,
+             "short_greedy": short_share(greedy), "short_fitness": short_share(fitness),
              "greedy": scores[0]["ssim"], "fitness": scores[1]["ssim"],
              "greedy_blurred": scores[0]["ssim_blurred"], "fitness_blurred": scores[1]["ssim_blurred"],
              "seconds": round(time.perf_counter() - t, 2)}
@@ -94,7 +104,8 @@ def main():
             extra = (f"  disc {r['disconnected']:.3f} {r['disconnected_blurred']:.3f}" if opts.disconnected else "")
             print(f"{path.name:<16} lines {k:5d}  SSIM greedy {r['greedy']:.3f} fitness {r['fitness']:.3f} "
                   f"({r['fitness'] - r['greedy']:+.3f})  blurred greedy {r['greedy_blurred']:.3f} "
-                  f"fitness {r['fitness_blurred']:.3f} ({r['fitness_blurred'] - r['greedy_blurred']:+.3f}){extra}")
+                  f"fitness {r['fitness_blurred']:.3f} ({r['fitness_blurred'] - r['greedy_blurred']:+.3f})  "
+                  f"short chords greedy {100 * r['short_greedy']:.0f}% fitness {100 * r['short_fitness']:.0f}%{extra}")
             sys.stdout.flush()
     plain = np.mean([r["fitness"] - r["greedy"] for r in results])
     blurred = np.mean([r["fitness_blurred"] - r["greedy_blurred"] for r in results])
