@@ -37,7 +37,6 @@ The wind loop's interface (``stringbot.winding``): ``identify``, ``prepare``,
 """
 
 import logging
-import math
 import time
 from dataclasses import dataclass
 
@@ -47,6 +46,7 @@ from firmware_protocol import dynamixel as dx
 
 from ..errors import BadInput, MachineFailure
 from .base import FirmwareInfo, LinkState, Status
+from .dynamixel_axes import ServoAxes
 from .dynamixel_bus import ServoBus, comm_name, poll_field
 
 __all__ = ["DynamixelLink", "ServoInfo", "open_dynamixel_link", "comm_name"]
@@ -92,10 +92,13 @@ class DynamixelLink:
         self.retries = retries
         self.arrival_slack_s = arrival_slack_s
         c = lambda key: machine[f"controller.{key}"]
-        self.tpt, self.gear = c("ticks_per_turn"), c("gear_ratio")
+        self.axes = ServoAxes(machine)
+        self.tpt = self.axes.tpt
+        self.ring_ticks, self.ring_deg = self.axes.ring_ticks, self.axes.ring_deg
+        self.head_ticks, self.head_mm = self.axes.head_ticks, self.axes.head_mm
+        self.head_in, self.head_out = self.axes.head_in, self.axes.head_out
         self.ids = {"ring": c("ring_id"), "head": c("head_id")}
         self.role = {v: k for k, v in self.ids.items()}
-        self.head_in, self.head_out = c("head_in_ticks"), c("head_out_ticks")
         self.state = LinkState.CLOSED
         self.servos = {}
         self.goal = {}              # id -> last Goal Position written
@@ -109,39 +112,8 @@ class DynamixelLink:
         self.position_lost = False    # a servo lost torque: positions may be re-based until resumed
         self.info = None
         self._executed = []         # steps executed but not yet handed to the wind loop
-        self._check_travel()
-        #: a servo within this many ticks of its goal, not moving, has arrived
-        self._arrival_ticks = {self.ids["ring"]: max(1, int(self.ring_ticks(machine.gap_tolerance_deg) / 4)),
-                               self.ids["head"]: max(1, abs(self.head_out - self.head_in) // 100)}
+        self._arrival_ticks = {self.ids["ring"]: self.axes.ring_arrival, self.ids["head"]: self.axes.head_arrival}
         self.bus = ServoBus(self.url, self.role, self._fail, protocol=c("protocol"), retries=retries)
-
-    # ---- units ------------------------------------------------------------------------------
-    def ring_ticks(self, ring_deg):
-        return round(ring_deg / 360.0 * self.gear * self.tpt)
-
-    def ring_deg(self, ticks):
-        return ticks / self.tpt * 360.0 / self.gear
-
-    def head_ticks(self, head_mm):
-        m = self.machine
-        return round(self.head_in + (head_mm - m["head.in_mm"]) * (self.head_out - self.head_in)
-                     / (m["head.out_mm"] - m["head.in_mm"]))
-
-    def head_mm(self, ticks):
-        m = self.machine
-        return m["head.in_mm"] + (ticks - self.head_in) * (m["head.out_mm"] - m["head.in_mm"]) \
-            / (self.head_out - self.head_in)
-
-    def _check_travel(self):
-        m = self.machine
-        pin0, travel = m["ring.pin0_angle_deg"], m["ring.travel_deg"]
-        worst = max(abs(self.ring_ticks(pin0 - travel)), abs(self.ring_ticks(pin0 + travel)))
-        if worst + self.tpt > dx.EXTENDED_POSITION_MAX:
-            limit = (dx.EXTENDED_POSITION_MAX - self.tpt) / self.tpt / self.gear * 360.0 - abs(pin0)
-            raise BadInput(
-                f"{m.path}: ring.travel_deg = {travel:g} takes the ring servo to {worst} ticks, beyond "
-                f"its extended-position range of +-{dx.EXTENDED_POSITION_MAX} (less one turn); expected "
-                f"ring.travel_deg <= {math.floor(limit)} with gear_ratio = {self.gear:g}")
 
     # ---- failures ---------------------------------------------------------------------------
     def _fail(self, message):
@@ -282,10 +254,7 @@ class DynamixelLink:
     def position_tolerance(self):
         """(ring_deg, head_mm): how far :meth:`position` may be from a planned point the servos
         arrived at (the arrival tolerance plus half a tick of rounding)."""
-        ring, head = self.ids["ring"], self.ids["head"]
-        return ((self._arrival_ticks[ring] + 0.5) / self.tpt * 360.0 / self.gear,
-                (self._arrival_ticks[head] + 0.5) * abs(self.head_mm(self.head_out) - self.head_mm(self.head_in))
-                / abs(self.head_out - self.head_in))
+        return self.axes.tolerance
 
     def position(self):
         """The last position read back with torque on: (ring_deg, head_mm).
@@ -448,16 +417,12 @@ class DynamixelLink:
         if not 0 <= goals[head] < self.tpt:
             raise self._fail(f"head goal {head_mm:.3f} mm = {goals[head]} ticks is outside one servo turn")
         changed = {i: g for i, g in goals.items() if g != self.goal.get(i)}
-        if len(changed) == 2 and not (self._inside(self.goal[head]) and self._inside(goals[head])):
-            order = (head, ring) if self._inside(goals[head]) else (ring, head)
+        if len(changed) == 2 and not (self.axes.inside(self.goal[head]) and self.axes.inside(goals[head])):
+            order = (head, ring) if self.axes.inside(goals[head]) else (ring, head)
             for servo_id in order:
                 self._go({servo_id: goals[servo_id]})
         elif changed:
             self._go(changed)
-
-    def _inside(self, head_ticks):
-        """Head on the IN side of the pin circle (midway IN..OUT)."""
-        return abs(head_ticks - self.head_in) < abs(head_ticks - self.head_out)
 
     def _go(self, changed):
         self.state = LinkState.STREAMING
