@@ -228,7 +228,7 @@ def _read_cache(path, n_ptr):
     return None
 
 
-def chord_pixels(space, size, *, cache=True):
+def chord_pixels(space, size, *, cache=True, write=True):
     """Pixels of every chord of ``space`` in a ``size x size`` image.
 
     Parameters
@@ -238,6 +238,8 @@ def chord_pixels(space, size, *, cache=True):
         Working image side in pixels.
     cache : bool
         Read and write the on-disk cache (see :func:`cache_dir`).
+    write : bool
+        Write the cache when it was missing (only with ``cache``).
 
     Returns
     -------
@@ -253,7 +255,7 @@ def chord_pixels(space, size, *, cache=True):
     i, j = space.ends[:, 0], space.ends[:, 1]
     counts, indices = line_pixels(rc[i, 0], rc[i, 1], rc[j, 0], rc[j, 1], size)
     indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    if path is not None:
+    if path is not None and write:
         _write_cache(path, indptr, indices)
     return indptr, indices
 
@@ -276,7 +278,7 @@ def pixel_chords(space, size, *, cache=True):
         return hit
     import scipy.sparse as sp
 
-    indptr, indices = chord_pixels(space, size, cache=cache)
+    indptr, indices = chord_pixels(space, size, cache=cache, write=False)  # the solve needs only this one
     ones = np.ones(len(indices), dtype=np.int8)
     csr = sp.csc_matrix((ones, indices, indptr), shape=(size * size, space.m)).tocsr()
     rowptr, chords = csr.indptr.astype(np.int64), csr.indices.astype(np.int32, copy=False)

@@ -42,8 +42,7 @@ class _PinChords:
             starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
             pos = np.arange(counts.sum()) - np.repeat(starts - lo, counts)
             pix = self.indices[pos]
-            empty = counts == 0
-            self.cache[p] = (others, pix, starts, empty)
+            self.cache[p] = (others, pix, starts)
         return self.cache[p]
 
 
@@ -104,13 +103,14 @@ def greedy_sequence(space, size, indptr, indices, gray, mask, lines, *, start_pi
     seq = [int(start_pin)]
     cur = int(start_pin)
     for _ in range(int(lines)):
-        others, pix, starts, empty = pins.get(cur)
-        sums = np.add.reduceat(work[pix], starts) if len(pix) else np.zeros(len(others), np.float32)
-        sums[empty] = -np.inf
-        recent = np.isin(others, seq[-min_loop:])
-        sums[recent] = -np.inf
-        if not len(sums):
+        others, pix, starts = pins.get(cur)
+        if not len(others):
             break
+        sums = np.add.reduceat(work[pix], starts)  # every chord has >= 1 pixel
+        for q in seq[-min_loop:]:
+            k = int(np.searchsorted(others, q))
+            if k < len(others) and others[k] == q:
+                sums[k] = -np.inf
         k = int(np.argmax(sums))
         if not sums[k] > 0:
             log.info("greedy: no chord from pin %d has a positive sum; stopping after %d lines",
