@@ -246,3 +246,18 @@ def test_broadcast_reboot_is_silent_and_clear_resets_the_turn_count(machine):
     assert read(emu, 1, "Present Position") == -3 * 4096 + 100
     assert exchange(emu, dx.BROADCAST_ID, I.REBOOT) == []
     assert read(emu, 1, "Present Position") == -3 * 4096 + 100   # Homing Offset is EEPROM
+
+
+def test_bulk_write_and_bulk_read_exact_exchange(machine):
+    emu = DynamixelEmulator(machine)
+    # bulk write: Torque Enable on servo 1, LED on servo 2; no status packets
+    params = bytes([1]) + dx.to_bytes(64, 2) + dx.to_bytes(1, 2) + b"\x01" \
+        + bytes([2]) + dx.to_bytes(65, 2) + dx.to_bytes(1, 2) + b"\x01"
+    emu.receive(dx.encode_instruction(dx.BROADCAST_ID, I.BULK_WRITE, params))
+    assert emu.transmit() == b""
+    # bulk read: different items from each servo, answered in the order asked
+    params = bytes([2]) + dx.to_bytes(65, 2) + dx.to_bytes(1, 2) + bytes([1]) + dx.to_bytes(132, 2) \
+        + dx.to_bytes(4, 2)
+    emu.receive(dx.encode_instruction(dx.BROADCAST_ID, I.BULK_READ, params))
+    assert emu.transmit() == dx.encode_status(2, 0, b"\x01") + dx.encode_status(1, 0, dx.to_bytes(0, 4))
+    assert read(emu, 1, "Torque Enable") == 1

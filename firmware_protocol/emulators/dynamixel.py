@@ -1,5 +1,8 @@
 """A bus of two Dynamixel X-series servos speaking Protocol 2.0: the ring's and the head's.
 
+Instructions: PING (also broadcast), READ, WRITE, SYNC READ, SYNC WRITE, BULK
+READ, BULK WRITE, REBOOT, CLEAR (the turn count); others get Instruction Error.
+
 Bytes in, bytes out, a virtual clock; no I/O.  Each servo keeps the
 control-table subset of :mod:`firmware_protocol.dynamixel` with its access
 rules (EEPROM items only with torque off, ranges, Data Range / Access /
@@ -307,6 +310,24 @@ class DynamixelEmulator(Emulator):
                 s = self.servos.get(body[i])
                 if s is not None and s.power is Power.ON:
                     self._write(s, address, body[i + 1:i + 1 + length], reply=False)
+        elif ins == dx.Instruction.BULK_READ and p.id == dx.BROADCAST_ID:
+            for i in range(0, len(prm) - 4, 5):        # [id, address, length] per servo
+                s = self.servos.get(prm[i])
+                address, length = dx.from_bytes(prm[i + 1:i + 3]), dx.from_bytes(prm[i + 3:i + 5])
+                if s is None or s.power is Power.OFF:
+                    break
+                self._poll(address, length)
+                err, data = s.read(address, length, self.now)
+                if not self._send(s, err, data):
+                    break
+        elif ins == dx.Instruction.BULK_WRITE and p.id == dx.BROADCAST_ID:
+            i = 0
+            while i + 5 <= len(prm):                   # [id, address, length, data] per servo
+                s = self.servos.get(prm[i])
+                address, length = dx.from_bytes(prm[i + 1:i + 3]), dx.from_bytes(prm[i + 3:i + 5])
+                if s is not None and s.power is Power.ON:
+                    self._write(s, address, prm[i + 5:i + 5 + length], reply=False)
+                i += 5 + length
         elif ins == dx.Instruction.REBOOT:
             for s in powered:                       # a broadcast REBOOT gets no status packet
                 if p.id == dx.BROADCAST_ID or self._send(s):
