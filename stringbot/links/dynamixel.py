@@ -165,6 +165,9 @@ class DynamixelLink:
                 raise self._fail(f"{self._name(servo_id)} is a {dx.MODELS.get(model, f'model {model}')} "
                                  f"(model number {model}); the machine file expects controller.model_number = "
                                  f"{expected} ({dx.MODELS.get(expected, 'unknown model')})")
+            if expected is None and model not in dx.MODELS:
+                log.warning("%s has model number %d, not a known X-series servo: the control table "
+                            "this link uses may not match", self._name(servo_id), model)
             self.servos[servo_id] = ServoInfo(role, servo_id, model, firmware)
         self.state = LinkState.IDENTIFIED
         models = sorted({s.model_name for s in self.servos.values()})
