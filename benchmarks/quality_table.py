@@ -88,7 +88,8 @@ def main():
         plans = [greedy, fitness]
         if opts.disconnected:
             plans.append(plan_picture(path, pins=opts.pins, size=opts.size, lines=k, disconnected=True, picture=pic))
-        scores = [score(p, pic.gray) for p in plans]
+        ref = read_picture(path, size=201, weights=pic.weights)  # as `stringbot score` reads it
+        scores = [score(p, ref.gray) for p in plans]
         r = {"image": path.name, "lines_auto": greedy.parameters["lines_target"], "lines": k,
              "short_greedy": short_share(greedy), "short_fitness": short_share(fitness),
              "greedy": scores[0]["ssim"], "fitness": scores[1]["ssim"],

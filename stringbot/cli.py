@@ -180,14 +180,18 @@ def score_cmd(plan, image, as_json):
 
     from .planner.image import read_picture, sha256_file
     from .planner.plan_file import read_plan
-    from .planner.render import BLUR_SIGMA, score
+    from .planner.render import BLUR_SIGMA, SCORE_SIZE, score
 
     p = read_plan(plan)
     image = image or p.source.get("path")
     if not image:
         raise BadInput(f"plan {plan!r} names no source picture; expected an IMAGE argument")
     gray = p.parameters.get("gray_requested", "decolor")
-    pic = read_picture(image, size=401, crop=p.crop, gray=gray if gray in ("decolor", "luminance") else "decolor")
+    weights = p.parameters.get("gray_weights")
+    if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):
+        weights = None
+    pic = read_picture(image, size=SCORE_SIZE, crop=p.crop, weights=weights,
+                       gray=gray if gray in ("decolor", "luminance") else "decolor")
     if p.source.get("sha256") and p.source["sha256"] != pic.source["sha256"]:
         log.warning("%s is not the picture the plan was made from (sha256 differs)", image)
     r = score(p, pic.gray)

@@ -127,8 +127,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
              "pixels_per_chord": round(float(nnz / max(space.m, 1)), 2)}
     params = {"pins": pins, "frame": frame, "size": size, "crop": pic.crop, "lines": lines, "lines_target": k,
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
-              "gray": pic.gray_method if pic.gray_method != "gray" else "gray",
-              "gray_requested": gray, "gray_weights": pic.weights,
+              "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
               "importance": str(importance) if importance is not None else None}
     chords = None
     if method == "greedy":
@@ -169,7 +168,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         raise BadInput(f"{method} found nothing to draw: the picture is blank inside the frame; "
                        "expected a picture with some dark parts")
     stats.update(lines=len(chord_list), thread_diameters=round(thread_length(space.pin_xy, chord_list), 3),
-                 chords_seconds=round(t_chords - t0, 3), seconds=round(time.perf_counter() - t0, 3))
+                 setup_seconds=round(t_chords - t0, 3), seconds=round(time.perf_counter() - t0, 3))
     if len(chord_list) < k:
         log.warning("%s stopped after %d of %d lines", method, len(chord_list), k)
     return Plan(pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],

@@ -198,7 +198,7 @@ def _whiten_outside(strip, origin, full):
     strip.paste(white, (0, 0))
 
 
-def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", rng=None):
+def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", rng=None, weights=None):
     """Read, crop and gray a picture.
 
     Parameters
@@ -215,6 +215,9 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
     rng : None, int or numpy Generator
         For the random pairs of the decolorization; None: a fixed seed, so
         that the same picture always gives the same plan.
+    weights : tuple of float, optional
+        ``(w_r, w_g, w_b)`` to use instead of choosing them (e.g. a plan's
+        recorded decolorization, to score against the very same gray).
 
     Returns
     -------
@@ -254,7 +257,9 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
     rgb = np.asarray(small, dtype=np.float32) / 255.0
     if np.ptp(rgb, axis=2).max() < 1.0 / 255:
         return Picture(rgb[..., 0] * 255.0, crop, source, "gray")
-    if gray == "luminance":
+    if weights is not None:
+        wts = tuple(float(v) for v in weights)
+    elif gray == "luminance":
         wts = (0.299, 0.587, 0.114)
     elif gray == "decolor":
         wts = decolorize(rgb, rng=rng)

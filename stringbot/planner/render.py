@@ -3,10 +3,11 @@
 A drawing is binary: black 1-pixel lines (one per chord) on white, pins at
 ``pin_xy * (size - 1)`` rounded to pixel centres.  The score is the paper's:
 the drawing at 1001 x 1001 and the picture's crop are both resized to
-201 x 201 and compared by SSIM; then again after a Gaussian blur of both.
-The picture is grayed and cropped exactly as the plan was made (its
-``parameters.gray`` and ``crop``); outside a circular frame it counts as white,
-as the drawing does.
+201 x 201 and compared by SSIM (Wang et al. 2004, the paper's reference: an
+11 x 11 Gaussian window of sigma 1.5, K1 = 0.01, K2 = 0.03); then again after a
+Gaussian blur of both.  The picture is grayed and cropped exactly as the plan
+was made (its ``crop`` and recorded gray weights); outside a circular frame
+it counts as white, as the drawing does.
 """
 
 import io
@@ -70,7 +71,8 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA):
     ----------
     plan : Plan
     gray : ndarray of float, shape (n, n)
-        The picture's crop, gray levels in [0, 255] (any square size).
+        The picture's crop, gray levels in [0, 255] (any square size; 201
+        avoids a second resampling).
     blur_sigma : float
         Gaussian sigma, in pixels at 201 x 201, of the blurred comparison.
 
@@ -91,7 +93,8 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA):
     drawing = draw(plan, size=SCORE_DRAW).astype(np.float64) / 255.0
     a = resize(g, (SCORE_SIZE, SCORE_SIZE), anti_aliasing=True)
     b = resize(drawing, (SCORE_SIZE, SCORE_SIZE), anti_aliasing=True)
-    plain = structural_similarity(a, b, data_range=1.0)
+    ssim = dict(data_range=1.0, gaussian_weights=True, sigma=1.5, use_sample_covariance=False)
+    plain = structural_similarity(a, b, **ssim)
     ab, bb = gaussian_filter(a, blur_sigma), gaussian_filter(b, blur_sigma)
-    blurred = structural_similarity(ab, bb, data_range=1.0)
+    blurred = structural_similarity(ab, bb, **ssim)
     return {"ssim": float(plain), "ssim_blurred": float(blurred), "lines": len(plan.chord_list())}

@@ -141,6 +141,6 @@ def sample_disconnected(space, table, lines, *, epsilon=2):
             heapq.heappush(heap, (-float(cur), a, b))
             continue
         table[a, b] = table[b, a] = -np.inf
-        lo, hi = diff.spread(table, a, b, cur)
+        diff.spread(table, a, b, cur)
         chosen.append((a, b))
     return chosen
