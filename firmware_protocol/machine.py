@@ -133,6 +133,13 @@ SCHEMA = {
 DYNAMIXEL_MAX_TURNS = 256
 
 
+#: Controller keys that only one kind of controller reads.
+DYNAMIXEL_ONLY = frozenset(f"controller.{k}" for k in (
+    "protocol", "ring_id", "head_id", "model_number", "ticks_per_turn", "gear_ratio",
+    "profile_velocity", "profile_acceleration", "head_in_ticks", "head_out_ticks"))
+GCODE_ONLY = frozenset(f"controller.{k}" for k in ("dialect", "ring_axis", "head_axis"))
+
+
 @dataclass(frozen=True)
 class Machine:
     """A checked machine definition.
@@ -183,14 +190,19 @@ class Machine:
         return self.values["ring.pin0_angle_deg"] + pin * self.pitch_deg
 
     def to_toml(self):
-        """The checked values as TOML text, defaults filled in (keys left unset are omitted)."""
+        """The checked values as TOML text, defaults filled in.
+
+        Keys left unset, and controller keys of the other controller kind, are omitted.
+        """
         lines = []
+        other = DYNAMIXEL_ONLY if self.values["controller.kind"] == "gcode" else GCODE_ONLY
         for section, keys in SCHEMA.items():
             if section:
                 lines += ["", f"[{section}]"]
             for key in keys:
-                value = self.values[f"{section}.{key}" if section else key]
-                if value is None:
+                dotted = f"{section}.{key}" if section else key
+                value = self.values[dotted]
+                if value is None or dotted in other:
                     continue
                 text = ("true" if value else "false") if isinstance(value, bool) else (
                     f'"{value}"' if isinstance(value, str) else repr(value) if isinstance(value, float)
