@@ -152,11 +152,19 @@ class Journal:
     def reopen(cls, path, *, durable=True):
         path = Path(path)
         data = path.read_bytes()
-        fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-        j = cls(path, fd, durable)
+        keep = len(data)
         if data and not data.endswith(b"\n"):
-            os.write(fd, b"\n")       # close a torn last line so that the next record stands alone
-        return j
+            keep = data.rfind(b"\n") + 1          # drop a torn last line
+        else:
+            last = data[:-1].rfind(b"\n") + 1
+            try:
+                json.loads(data[last:keep])
+            except ValueError:
+                keep = last                        # a torn last line that ended in a newline
+        if keep < len(data):
+            os.truncate(path, keep)
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+        return cls(path, fd, durable)
 
     def append(self, record):
         """Write one record and fsync it before returning."""
