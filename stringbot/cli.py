@@ -177,15 +177,20 @@ def render_cmd(plan, output, size):
 def score_cmd(plan, image, as_json):
     """SSIM of PLAN against IMAGE (default: the plan's source), as in the paper's section 4.1."""
     import json
+    import os
 
     from .planner.image import read_picture, sha256_file
     from .planner.plan_file import read_plan
     from .planner.render import BLUR_SIGMA, SCORE_SIZE, score
 
     p = read_plan(plan)
-    image = image or p.source.get("path")
-    if not image:
-        raise BadInput(f"plan {plan!r} names no source picture; expected an IMAGE argument")
+    if image is None:
+        image = p.source.get("path")
+        if not image:
+            raise BadInput(f"plan {plan!r} names no source picture; expected an IMAGE argument")
+        beside = os.path.join(os.path.dirname(plan), image)
+        if not os.path.isabs(image) and not os.path.exists(image) and os.path.exists(beside):
+            image = beside  # a relative source path, taken from the plan's folder
     gray = p.parameters.get("gray_requested", "decolor")
     weights = p.parameters.get("gray_weights")
     if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):

@@ -217,3 +217,20 @@ def test_lazy_imports_keep_startup_light():
             "if m in sys.modules]; print(','.join(heavy))")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert p.returncode == 0 and p.stdout.strip() == "", p.stdout + p.stderr
+
+
+def test_score_finds_a_relative_source_and_warns_when_it_changed(tmp_path, picture):
+    work = tmp_path / "work"
+    work.mkdir()
+    Image.open(picture).save(work / "art.png")
+    code, _, err = run("plan", "art.png", "-o", "p.json", "--lines", "40", *SMALL, cwd=work)
+    assert code == 0, err
+    assert sorted(p.name for p in work.iterdir()) == ["art.png", "p.json", "p.png"]  # no temp files left
+    code, out, err = run("score", work / "p.json", "--json", cwd=tmp_path)  # source found beside the plan
+    assert code == 0, err
+    first = json.loads(out)
+    assert err.strip() == ""
+    Image.fromarray(255 - np.asarray(Image.open(work / "art.png"))).save(work / "art.png")
+    code, out, err = run("score", work / "p.json", "--json", cwd=tmp_path)
+    assert code == 0 and "sha256 differs" in err, (out, err)
+    assert json.loads(out)["ssim"] != first["ssim"]
