@@ -17,7 +17,6 @@ Building it is vectorised and chunked; the result is cached on disk per
 ``(frame, pins, size)`` (see :func:`cache_dir`).
 """
 
-import io
 import logging
 import os
 from dataclasses import dataclass
@@ -293,10 +292,9 @@ def _write_cache(path, indptr, indices):
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        buf = io.BytesIO()
-        np.savez(buf, indptr=indptr, indices=indices)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        tmp.write_bytes(buf.getbuffer())
+        with open(tmp, "wb") as f:  # straight to the file: no in-memory copy of a large array
+            np.savez(f, indptr=indptr, indices=indices)
         os.replace(tmp, path)
         log.debug("chord pixels cached in %s", path)
     except OSError as exc:
