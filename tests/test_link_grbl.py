@@ -41,7 +41,7 @@ def test_identify_grblhal_buffer_from_dollar_i():
     ("grblhal", [(None, BANNER), (b"$I\n", I_GRBL)], "runs GRBL"),
     ("grbl", [(b"$I\n", b"echo:Unknown command: \"$I\"\r\nok\r\n")], "runs Marlin"),
     ("grbl", [(b"$I\n", b"hello world\r\n")], "not GRBL"),
-    ("grbl", [(b"$I\n", b""), (b"$I\n", b"")], "no answer"),
+    ("grbl", [(b"$I\n", b"")], "no answer"),
     ("grbl", [(b"$I\n", b"\xff\xfe\x00garbage\r\n")], "garbage"),
 ])
 def test_wrong_or_silent_firmware_refused(dialect, table, words):
@@ -55,6 +55,19 @@ def ready(extra, dialect="grbl", **kw):
     lk, port = link([(None, BANNER), (b"$I\n", I_GRBL)] + extra, dialect, **kw)
     lk.identify()
     return lk, port
+
+
+def test_a_banner_after_the_query_is_waited_out_not_answered_twice():
+    # the board printed its banner while our $I was on its way: the answer still comes, once
+    lk, port = link([(b"$I\n", BANNER + I_GRBL)])
+    assert lk.identify().version == "1.1h"
+    port.assert_done()
+
+
+def test_a_query_lost_in_a_reset_is_asked_again():
+    lk, port = link([(b"$I\n", BANNER), (b"$I\n", I_GRBL)])
+    assert lk.identify().version == "1.1h"
+    port.assert_done()
 
 
 def test_prepare_homes_when_asked_and_sets_modal_state():

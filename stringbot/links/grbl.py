@@ -77,6 +77,8 @@ class GrblLink(LineLink):
         self.last_status = None
         self.max_inflight_bytes = 0   # for tests: character counting never exceeds rx_size
         self.status_log = None        # list -> every status report is appended as (time, Status)
+        self.status_interval = None   # seconds: ask ``?`` this often while waiting (measurements)
+        self._last_query = 0.0
 
     # ---- identification --------------------------------------------------------------
     def identify(self):
@@ -125,27 +127,35 @@ class GrblLink(LineLink):
         return self.info
 
     def _ask(self, text, seen):
-        """Send a query in send-response fashion, re-sending once if the firmware reset meanwhile."""
-        for attempt in range(2):
-            self.write(text.encode("ascii") + b"\n")
-            lines = []
-            deadline = time.monotonic() + self.response_timeout
-            while time.monotonic() < deadline:
-                line = self.readline(deadline - time.monotonic())
-                if line is None:
-                    break
-                if line.startswith("ok") or line.startswith("error"):
-                    lines.append(line)
-                    return lines
-                if _BANNER.match(line) and attempt == 0 and not lines:
-                    seen.append(line)       # the port open reset the board: ask again
-                    break
+        """Send a query in send-response fashion.
+
+        A banner arriving meanwhile means the board (re)started: the query may
+        have been lost in the reset (a real Arduino resets when its port opens),
+        so it is sent once more if no answer follows soon after the banner.
+        """
+        self.write(text.encode("ascii") + b"\n")
+        lines = []
+        deadline = time.monotonic() + self.response_timeout
+        resent = banner = False
+        while True:
+            line = self.readline(max(0.0, deadline - time.monotonic()))
+            if line is None:
+                if banner and not resent:
+                    resent = True
+                    self.write(text.encode("ascii") + b"\n")
+                    deadline = time.monotonic() + self.response_timeout
+                    continue
+                return lines
+            if line.startswith("ok") or line.startswith("error"):
                 lines.append(line)
-            else:
                 return lines
-            if lines:
-                return lines
-        return []
+            if _BANNER.match(line):
+                seen.append(line)
+                lines = []
+                banner = True
+                deadline = min(deadline, time.monotonic() + 0.5)
+                continue
+            lines.append(line)
 
     # ---- state -----------------------------------------------------------------------
     def status(self, timeout=None):
@@ -307,7 +317,16 @@ class GrblLink(LineLink):
         deadline = time.monotonic() + timeout
         idle_polls = 0
         while len(self._inflight) > at_most:
-            line = self.readline(self.poll_interval)
+            if self.status_interval:
+                now = time.monotonic()
+                if now - self._last_query >= self.status_interval:
+                    self.write(b"?")
+                    self._last_query = now
+                line = self.readline(min(self.poll_interval, self.status_interval))
+                if line is None and time.monotonic() - self._last_query < self.poll_interval:
+                    continue
+            else:
+                line = self.readline(self.poll_interval)
             if line is not None:
                 idle_polls = 0
                 self._handle(line)
