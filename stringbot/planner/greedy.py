@@ -106,7 +106,7 @@ def greedy_sequence(space, size, indptr, indices, gray, mask, lines, *, start_pi
         others, pix, starts = pins.get(cur)
         if not len(others):
             break
-        sums = np.add.reduceat(work[pix], starts)  # every chord has >= 1 pixel
+        sums = np.add.reduceat(work.take(pix), starts)  # every chord has >= 1 pixel
         for q in seq[-min_loop:]:
             k = int(np.searchsorted(others, q))
             if k < len(others) and others[k] == q:

@@ -60,7 +60,7 @@ def png_bytes(image):
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(np.asarray(image, dtype=np.uint8), "L").save(buf, format="PNG", optimize=False)
+    Image.fromarray(np.asarray(image, dtype=np.uint8), "L").save(buf, format="PNG", compress_level=3)
     return buf.getvalue()
 
 
