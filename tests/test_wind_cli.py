@@ -95,3 +95,67 @@ def test_ctrl_c_exits_130_with_the_resume_command(tmp_path, plan_path):
     lines = error_lines(err)
     assert len(lines) == 1 and "Traceback" not in err
     assert "interrupted at pin" in lines[0] and "--resume" in lines[0]
+
+
+class FakeDevice:
+    """A pty whose far end answers every write with ``reply`` (None: never answers)."""
+
+    def __init__(self, reply):
+        import threading
+        import tty
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.path = os.ttyname(slave)
+        os.close(slave)
+        self.reply = reply
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+
+    def run(self):
+        import select
+        while not self.stop.is_set():
+            ready, _, _ = select.select([self.master], [], [], 0.05)
+            if ready:
+                try:
+                    os.read(self.master, 1024)
+                except OSError:
+                    continue
+                if self.reply:
+                    os.write(self.master, self.reply)
+
+    def close(self):
+        self.stop.set()
+        self.thread.join()
+        os.close(self.master)
+
+
+@pytest.mark.parametrize("reply, words", [
+    (b"\x00\xff\xfe#$%\r\n", "garbage"),
+    (None, "no answer"),
+    (b"FIRMWARE_NAME:Marlin 2.1.2\r\nok\r\n", "runs Marlin"),
+])
+def test_a_device_that_is_not_the_machine_exits_1(tmp_path, plan_path, capsys, reply, words):
+    dev = FakeDevice(reply)
+    try:
+        code, out, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes",
+                              "--port", dev.path, "--journal", str(tmp_path / "j")], capsys)
+    finally:
+        dev.close()
+    assert code == 1, err
+    lines = error_lines(err)
+    assert len(lines) == 1 and "Traceback" not in err and words in lines[0]
+
+
+def test_a_busy_port_exits_2(tmp_path, plan_path, capsys):
+    import serial
+    dev = FakeDevice(None)
+    holder = serial.Serial(dev.path, exclusive=True)
+    try:
+        code, out, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes",
+                              "--port", dev.path, "--journal", str(tmp_path / "j")], capsys)
+    finally:
+        holder.close()
+        dev.close()
+    assert code == 2, err
+    assert "busy" in error_lines(err)[0]
