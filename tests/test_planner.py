@@ -307,10 +307,16 @@ def test_greedy_stays_off_white_and_respects_its_loop_rule():
     assert np.mean(np.abs(mids - 0.5) < 0.15) > 0.6
 
 
-def test_blank_picture_is_refused_by_greedy():
+@pytest.mark.parametrize("method", ["greedy", "fitness"])
+def test_blank_picture_is_refused(method):
     pic = picture(np.full((101, 101), 255.0))
     with pytest.raises(BadInput, match="nothing to draw"):
-        plan_picture("x", pins=40, size=101, method="greedy", picture=pic)
+        plan_picture("x", pins=40, size=101, method=method, picture=pic)
+
+
+def test_tiny_ring_runs_out_of_chords_gracefully():
+    plan = plan_picture("x", pins=3, size=101, lines=10, picture=picture(bar_picture()))
+    assert 1 <= plan.stats["lines"] <= 3 and len(set(map(frozenset, plan.chord_list()))) == plan.stats["lines"]
 
 
 def test_disconnected_plan_is_a_chord_set():
@@ -350,7 +356,8 @@ def test_importance_pulls_chords_to_the_important_half(tmp_path):
 @pytest.mark.parametrize("knob, value, words", [
     ("pins", 2, "--pins 2"), ("pins", 10**6, "--pins"), ("lines", 0, "--lines 0"), ("lines", -3, "--lines"),
     ("size", 5, "--size"), ("T", 0.0, "--T"), ("alpha", 2.0, "--alpha"), ("start_pin", 99, "--start-pin"),
-    ("epsilon", -1, "--epsilon"), ("frame", "hexagon", "--frame"), ("method", "magic", "--method"),
+    ("epsilon", -1, "--epsilon"), ("epsilon", 5000, "--epsilon"), ("frame", "hexagon", "--frame"),
+    ("method", "magic", "--method"), ("iterations", 0, "--iterations"),
 ])
 def test_bad_knobs_are_named(knob, value, words):
     kw = dict(pins=60, size=101, lines=10, picture=picture(bar_picture()))

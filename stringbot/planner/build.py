@@ -60,7 +60,7 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
             ("beta", beta, beta >= 0, ">= 0"),
             ("gamma", gamma, gamma >= 0, ">= 0"),
             ("T", T, T > 0, "> 0"),
-            ("epsilon", epsilon, 0 <= epsilon <= pins // 2, f"0..{pins // 2}"),
+            ("epsilon", epsilon, 0 <= epsilon <= 1000, "0..1000 pins"),
             ("iterations", iterations, 1 <= iterations <= 10_000, "1..10000")):
         if not (ok and math.isfinite(value)):
             raise BadInput(f"--{name} {value}; expected {expected}")
@@ -143,6 +143,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
 
         params.update(alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations)
         inv = 255.0 - pic.gray
+        if float(inv[mask].max(initial=0.0)) < 1.0:
+            raise BadInput(f"{method} found nothing to draw: the picture is blank inside the frame; "
+                           "expected a picture with some dark parts")
         gy, gx = gradients(inv)
         b = (1.0 - alpha) * inv + alpha * np.hypot(gx, gy)
         w = mask.astype(np.float32) if weights is None else np.where(mask, weights, 0).astype(np.float32)
