@@ -110,24 +110,30 @@ def test_fault_through_a_pty_then_resume(tmp_path, sim_factory, machine, faults)
 
 def test_host_killed_with_sigkill_then_resume(tmp_path, sim_factory):
     """SIGKILL at a few moments of a longer winding; --resume each time until done."""
-    plan = small_plan(n=400, seed=13)
+    plan = small_plan(n=800, seed=13)
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory("grbl-ring")
     journal = tmp_path / "j"
-    kills = 0
+    kills, finished = 0, False
     resume = []
-    for delay in (1.2, 0.9, 1.1):
+    for delay in (1.2, 0.8, 1.0):
         cmd = STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring", "--port",
                            str(sim.pty), "--yes", "--journal", str(journal)] + resume
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        time.sleep(delay)
-        if proc.poll() is None:
+        try:
+            proc.wait(timeout=delay)
+        except subprocess.TimeoutExpired:
             proc.send_signal(signal.SIGKILL)
             kills += 1
-        proc.communicate()
+        out, err = proc.communicate()
+        if proc.returncode == 0:
+            finished = True
+            break
+        assert proc.returncode == -signal.SIGKILL, err
         resume = ["--resume"]
-    last = wind(tmp_path / "plan.json", "grbl-ring", sim.pty, journal, "--resume")
-    assert last.returncode == 0, last.stderr
+    if not finished:
+        last = wind(tmp_path / "plan.json", "grbl-ring", sim.pty, journal, "--resume")
+        assert last.returncode == 0, last.stderr
     sim.stop()
     pins, collisions = sim.wraps()
     assert kills >= 1

@@ -8,6 +8,7 @@ lines) into the step-level interface the wind loop drives (documented in
 
 import logging
 import re
+import time
 
 from ..motion import dialect_for
 from .base import LinkState, Status, where_of
@@ -159,6 +160,54 @@ class GcodeMachineLink:
             return None
         return ring, head
 
+    # ---- for resume ----------------------------------------------------------------------
+    def reconnect(self, timeout=600.0):
+        """After a stop: settle the machine, identify it, clear an alarm without moving.
+
+        A machine still running the lines it had (its host died) is waited for; one
+        in feed hold is flushed (GRBL: soft reset once stopped, which keeps its
+        position).  Returns True when the firmware's position is not to be trusted:
+        it (re)started (banner) or raised an alarm.
+        """
+        proto = self.proto
+        said = proto.drain_input(quiet=0.05, limit=2.5)
+        grbl = isinstance(proto, GrblLink)
+        if grbl:
+            self._settle(timeout)
+        info = proto.identify()
+        lost = proto.position_lost or any(_started(x) for x in list(said) + list(info.lines))
+        if grbl and proto.status().state == "Alarm":
+            lost = True
+            proto.command("$X")
+        return lost
+
+    def _settle(self, timeout):
+        proto = self.proto
+        deadline = time.monotonic() + timeout
+        while True:
+            st = proto.status()
+            if st.state == "Hold" and st.sub == "0":
+                proto.flush()
+                continue
+            if st.state in ("Idle", "Alarm", "Check"):
+                proto.drain_input(quiet=0.05, limit=0.5)
+                proto.forget_unanswered()
+                return st
+            if time.monotonic() > deadline:
+                raise proto.fail(f"the machine is still {st.state} after {timeout:.0f} s; stop it and resume")
+            time.sleep(0.05)
+
+    def restore_modal(self):
+        """Millimetres, absolute positions, feed per minute (what a reset forgets)."""
+        self.proto.prepare(home=False, preamble=self.dialect.preamble())
+
+    def move_to(self, ring_deg, head_mm, *, axis):
+        """One straight move at ``axis``'s feed ("ring" or "head"), waited for."""
+        from ..motion import Move
+        m = self.machine
+        feed = m["ring.feed_deg_per_min"] if axis == "ring" else m["head.feed_mm_per_min"]
+        self.proto.run_lines([self.dialect.move_line(Move(ring_deg, head_mm, feed))], self.proto.where)
+
     def set_position(self, ring_deg, head_mm):
         """Declare where the machine is (after homing or an operator's check)."""
         self.proto.command(self.dialect.set_position(ring_deg, head_mm))
@@ -205,5 +254,8 @@ def gcode_machine_link(port, machine, **options):
     return GcodeMachineLink(proto, machine, sync=sync)
 
 
-# re-exported for type checks in winding
-__all__ += ["LinkState", "Status"]
+
+def _started(line):
+    """A line a firmware prints when it (re)starts."""
+    from firmware_protocol.grbl import is_banner
+    return bool(line) and (is_banner(line) or line.strip() == "start")

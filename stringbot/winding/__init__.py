@@ -29,9 +29,21 @@ The wind loop drives a machine through a *step-level link*; the G-code link
     (those confirmed while stopping).
 ``position() -> (ring_deg, head_mm) | None``
     Where the machine believes it is, in the job's coordinates (None: lost).
-``home()``, ``set_position(ring_deg, head_mm)``, ``unlock()``, ``flush()``
-    For resume: re-home; declare a known position; clear an alarm without
-    moving; drop queued motion once stopped.
+``stop_point() -> {"step_index", "move"}``
+    The step not yet handed over and the move of it that was running, for the
+    journal's stop record.
+``on_move``
+    Attribute: ``callable(step, move_index)`` set by the wind loop, called once a
+    move has been executed (the journal records moves that leave the head OUT).
+``position_lost``
+    True once the device reset, lost power or alarmed: its position is not to
+    be trusted.
+
+For resume, a G-code link also offers ``reconnect() -> position_lost`` (settle,
+identify, unlock), ``restore_modal()``, ``move_to(ring, head, axis=)``,
+``home()`` and ``set_position(ring_deg, head_mm)``; a servo link offers
+``prepare(home=False, resume_at=(ring_deg, head_mm))`` (re-base the ring's turn
+count from the journal) and returns the position read back.
 ``close()``; attributes ``info`` (FirmwareInfo), ``lines_sent`` (int).
 
 Errors: ``MachineFailure`` naming the step and pin (steps numbered from 1),

@@ -30,8 +30,6 @@ the winding continues with the interrupted move.
 import datetime
 import logging
 
-from firmware_protocol.grbl import is_banner
-
 from ..errors import BadInput, MachineFailure
 from ..links import open_link
 from .journal import Journal, read_journal
@@ -165,7 +163,7 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=N
         link = open_link(job.url, machine, **(link_options or {}))
         winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
         winder.state = winder.state.CONNECTING
-        if hasattr(link, "proto"):
+        if hasattr(link, "reconnect"):
             here, lost = _recover_gcode(link, job, state, s, m, head_side, confirm)
         else:
             here, lost = _recover_servo(link, job, s, m)
@@ -199,52 +197,20 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=N
 
 def _recover_gcode(link, job, state, s, m, head_side, confirm):
     """Reconnect a G-code machine and find where it stands; returns ((ring, head), position_lost)."""
-    machine, steps = job.machine, job.steps
-    proto = link.proto
-    said = proto.drain_input(quiet=0.05, limit=2.5)       # a banner here: it restarted
-    grbl = hasattr(proto, "flush")
-    st = _settle(proto) if grbl else None                 # $I is refused while it moves or holds
-    info = link.identify()
-    lost = proto.position_lost or any(is_banner(x) or x.strip() == "start"
-                                      for x in list(said) + list(info.lines) if x)
+    lost = link.reconnect()
     stop = state.last_stop
     if stop is not None and stop.get("position_lost") and not state_resumed_after(state, stop):
         lost = True
-    if grbl:
-        st = proto.status()
-        if st.state == "Alarm":
-            lost = True
-            proto.command("$X")
-    if not lost:
-        here = link.position()
-        if here is None:
-            lost = True
-    if lost:
+    here = None if lost else link.position()
+    if here is None:
+        lost = True
         here = _lost_position(link, job, s, m, head_side, confirm)
-    proto.prepare(home=False, preamble=link.dialect.preamble())
+    link.restore_modal()
     return here, lost
 
 
 def state_resumed_after(state, stop):
     return bool(state.resumes) and state.resumes[-1].get("t", 0) > stop.get("t", 0)
-
-
-def _settle(proto, timeout=600.0):
-    """Let a machine that still runs finish; flush one in feed hold.  Returns the status."""
-    import time
-    deadline = time.monotonic() + timeout
-    while True:
-        st = proto.status()
-        if st.state == "Hold" and st.sub == "0":
-            proto.flush()
-            continue
-        if st.state in ("Idle", "Alarm", "Check"):
-            proto.drain_input(quiet=0.05, limit=0.5)
-            proto.forget_unanswered()
-            return st
-        if time.monotonic() > deadline:
-            raise proto.fail(f"the machine is still {st.state} after {timeout:.0f} s; stop it and resume")
-        time.sleep(0.05)
 
 
 def _lost_position(link, job, s, m, head_side, confirm):
@@ -278,27 +244,18 @@ def _lost_position(link, job, s, m, head_side, confirm):
     if machine["controller.homing"]:
         head_in = machine["head.in_mm"]
         if side == "out":
-            link.proto.run_lines([link.dialect.move_line(_move(here[0], head_in, machine, "head"))],
-                                 link.proto.where)
+            link.move_to(here[0], head_in, axis="head")       # back in through the gap it stands at
             here = (here[0], head_in)
-        link.home()
+        link.home()                                           # the head is IN: the ring turns freely
         home_ring = machine["controller.home_ring_deg"]
         home_head = machine["controller.home_head_mm"]
         home_head = head_in if home_head is None else home_head
         turns = round((here[0] - home_ring) / 360.0)
         link.set_position(home_ring + 360.0 * turns, home_head)
         if home_head != head_in:
-            link.proto.run_lines([link.dialect.move_line(_move(home_ring + 360.0 * turns, head_in, machine,
-                                                               "head"))], link.proto.where)
-        link.proto.run_lines([link.dialect.move_line(_move(here[0], head_in, machine, "ring"))],
-                             link.proto.where)
+            link.move_to(home_ring + 360.0 * turns, head_in, axis="head")
+        link.move_to(here[0], head_in, axis="ring")
     return here
-
-
-def _move(ring_deg, head_mm, machine, axis):
-    from ..motion import Move
-    feed = machine["ring.feed_deg_per_min"] if axis == "ring" else machine["head.feed_mm_per_min"]
-    return Move(ring_deg, head_mm, feed)
 
 
 def _recover_servo(link, job, s, m):
