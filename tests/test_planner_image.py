@@ -187,3 +187,28 @@ def test_mask_must_match_the_picture(tmp_path):
                                  source_size=(64, 64)), 1.0)
     with pytest.raises(BadInput, match="expected the picture's size 80 x 64"):
         read_mask(tmp_path / "m.png", size=32, crop={"cx": 40, "cy": 32, "r": 32}, source_size=(80, 64))
+
+
+def test_exif_orientation_is_applied(tmp_path):
+    g = np.full((60, 100), 255, dtype=np.uint8)  # landscape as stored ...
+    g[:, :20] = 0                               # ... dark band on the left
+    im = Image.fromarray(g)
+    exif = Image.Exif()
+    exif[0x0112] = 6  # shown turned 90 degrees clockwise: portrait, the band on top
+    path = tmp_path / "o.jpg"
+    im.save(path, exif=exif.tobytes(), quality=95)
+    pic = read_picture(path, size=60, gray="luminance")
+    assert pic.crop == {"cx": 30.0, "cy": 50.0, "r": 30.0}  # centred in the 60 x 100 portrait
+    shown = read_picture(path, size=60, crop=parse_crop("30,10,10"))
+    assert shown.gray.mean() < 40  # the dark band is at the top of the picture as shown
+
+
+def test_big_jpeg_is_decoded_at_a_reduced_scale_with_the_same_result(tmp_path):
+    y, x = np.mgrid[:1600, :2400]
+    g = ((np.sin(x / 150.0) + np.cos(y / 110.0)) * 60 + 128).astype(np.uint8)
+    Image.fromarray(g).save(tmp_path / "big.jpg", quality=95)
+    Image.fromarray(g).save(tmp_path / "big.png")
+    a = read_picture(tmp_path / "big.jpg", size=101, crop=parse_crop("1300,700,500"))
+    b = read_picture(tmp_path / "big.png", size=101, crop=parse_crop("1300,700,500"))
+    assert np.abs(a.gray - b.gray).mean() < 2.0
+    assert a.source["width"] == 2400 and a.crop == {"cx": 1300.0, "cy": 700.0, "r": 500.0}

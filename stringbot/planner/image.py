@@ -4,7 +4,8 @@ The planner only ever sees a ``size x size`` float array of gray levels in
 [0, 255] (0 black).  A picture is read like this:
 
 1. PIL opens it lazily; zero-byte, foreign or truncated files are
-   :class:`~stringbot.errors.BadInput`.  Pictures of up to
+   :class:`~stringbot.errors.BadInput`.  A camera's EXIF orientation is
+   applied (crops are in the coordinates of the picture as shown).  Pictures of up to
    :data:`MAX_PIXELS` pixels are accepted (PIL's decompression-bomb limit is
    raised for the open only); a JPEG is decoded at a reduced scale
    (``Image.draft``).
@@ -225,6 +226,12 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
     """
     im = _open(path, what)
     w, h = im.size
+    try:
+        orientation = int(im.getexif().get(0x0112, 1))  # EXIF orientation: cameras store pictures turned
+    except Exception:  # noqa: BLE001 -- a damaged EXIF block is no reason to refuse the picture
+        orientation = 1
+    if orientation in (5, 6, 7, 8):
+        w, h = h, w  # the picture as it is shown: crops are in these coordinates
     crop = dict(crop) if crop else default_crop(w, h)
     cx, cy, r = crop["cx"], crop["cy"], crop["r"]
     box = (cx - r, cy - r, cx + r, cy + r)
@@ -237,13 +244,19 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
         if im.format == "JPEG" and im.mode in ("L", "RGB", "CMYK", "YCbCr"):
             scale = max(1, int(2 * r // (2 * size)))
             if scale > 1:
-                im.draft(im.mode, (max(1, w // scale), max(1, h // scale)))
-                k = w / im.size[0]
-                box = tuple(v / k for v in box)
+                raw_w, raw_h = im.size
+                im.draft(im.mode, (max(1, raw_w // scale), max(1, raw_h // scale)))
         if _decoded_bytes(im) > MAX_DECODED_BYTES:
             raise BadInput(f"{what} {str(path)!r} ({w} x {h}, mode {im.mode}) needs more than "
                            f"{MAX_DECODED_BYTES / 1e9:.1f} GB to decode; expected a smaller picture")
         im.seek(0) if getattr(im, "n_frames", 1) > 1 else None
+        if orientation != 1:
+            from PIL import ImageOps
+
+            im = ImageOps.exif_transpose(im)
+        if im.size[0] != w:  # decoded at a reduced scale
+            k = w / im.size[0]
+            box = tuple(v / k for v in box)
         small = _cut(im, box, size)
     except BadInput:
         raise
