@@ -163,7 +163,7 @@ def test_bad_pictures(tmp_path, which):
     (["--crop", "1,2"], "--crop"),
     (["--crop", "900,900,10"], "outside"),
     (["--start-pin", "400"], "--start-pin"),
-    (["-T", "0"], "--T 0"),
+    (["-T", "0"], "-T/--sharpness 0"),
     (["--method", "greedy", "--disconnected"], "--disconnected"),
 ])
 def test_bad_options(tmp_path, picture, args, words):

@@ -355,7 +355,7 @@ def test_importance_pulls_chords_to_the_important_half(tmp_path):
 
 @pytest.mark.parametrize("knob, value, words", [
     ("pins", 2, "--pins 2"), ("pins", 10**6, "--pins"), ("lines", 0, "--lines 0"), ("lines", -3, "--lines"),
-    ("size", 5, "--size"), ("T", 0.0, "--T"), ("alpha", 2.0, "--alpha"), ("start_pin", 99, "--start-pin"),
+    ("size", 5, "--size"), ("T", 0.0, "--sharpness"), ("alpha", 2.0, "--alpha"), ("start_pin", 99, "--start-pin"),
     ("epsilon", -1, "--epsilon"), ("epsilon", 5000, "--epsilon"), ("frame", "hexagon", "--frame"),
     ("method", "magic", "--method"), ("iterations", 0, "--iterations"),
 ])

@@ -56,14 +56,14 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
     if not 0 <= start_pin < pins:
         raise BadInput(f"--start-pin {start_pin}; expected 0..{pins - 1}")
     for name, value, ok, expected in (
-            ("alpha", alpha, 0 <= alpha <= 1, "0..1"),
-            ("beta", beta, beta >= 0, ">= 0"),
-            ("gamma", gamma, gamma >= 0, ">= 0"),
-            ("T", T, T > 0, "> 0"),
-            ("epsilon", epsilon, 0 <= epsilon <= 1000, "0..1000 pins"),
-            ("iterations", iterations, 1 <= iterations <= 10_000, "1..10000")):
+            ("--alpha", alpha, 0 <= alpha <= 1, "0..1"),
+            ("--beta", beta, beta >= 0, ">= 0"),
+            ("--gamma", gamma, gamma >= 0, ">= 0"),
+            ("-T/--sharpness", T, T > 0, "> 0"),
+            ("--epsilon", epsilon, 0 <= epsilon <= 1000, "0..1000 pins"),
+            ("--iterations", iterations, 1 <= iterations <= 10_000, "1..10000")):
         if not (ok and math.isfinite(value)):
-            raise BadInput(f"--{name} {value}; expected {expected}")
+            raise BadInput(f"{name} {value}; expected {expected}")
 
 
 def thread_length(pin_xy, chords):
