@@ -163,13 +163,13 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=N
         link = open_link(job.url, machine, **(link_options or {}))
         winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
         winder.state = winder.state.CONNECTING
+        where = None
         if hasattr(link, "reconnect"):
-            here, lost = _recover_gcode(link, job, state, s, m, head_side, confirm)
+            here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm)
         else:
             here, lost = _recover_servo(link, job, s, m)
-        where = locate(here, steps, s, m, machine) if s < len(steps) else (len(steps), 0)
-        if where is None and lost:
-            where = locate(here, steps, s, 0, machine)
+        if where is None:
+            where = locate(here, steps, s, m, machine) if s < len(steps) else (len(steps), 0)
         if where is None:
             raise MachineFailure(f"the machine stands at ring {here[0]:.3f}, head {here[1]:.3f}, which is "
                                  f"not on the path the journal expects (step {s + 1}, move {m + 1}); "
@@ -202,11 +202,12 @@ def _recover_gcode(link, job, state, s, m, head_side, confirm):
     if stop is not None and stop.get("position_lost") and not state_resumed_after(state, stop):
         lost = True
     here = None if lost else link.position()
+    where = None
     if here is None:
         lost = True
-        here = _lost_position(link, job, s, m, head_side, confirm)
+        here, where = _lost_position(link, job, s, m, head_side, confirm)
     link.restore_modal()
-    return here, lost
+    return here, lost, where
 
 
 def state_resumed_after(state, stop):
@@ -232,7 +233,10 @@ def _lost_position(link, job, s, m, head_side, confirm):
     else:
         raise BadInput("the machine lost its position while the thread head was moving in or out; "
                        "look at it and give --head-side in or --head-side out")
-    here = before if _side(machine, before[1]) == side else after
+    if _side(machine, before[1]) == side:
+        here, point = before, (s, m)
+    else:
+        here, point = after, _next(steps, s, m + 1)     # the head move had finished
     pins = machine.pins
     gap = (here[0] - machine["ring.pin0_angle_deg"]) / machine.pitch_deg
     if confirm is not None and not confirm(
@@ -246,6 +250,7 @@ def _lost_position(link, job, s, m, head_side, confirm):
         if side == "out":
             link.move_to(here[0], head_in, axis="head")       # back in through the gap it stands at
             here = (here[0], head_in)
+            point = _after_point(steps, s, here)
         link.home()                                           # the head is IN: the ring turns freely
         home_ring = machine["controller.home_ring_deg"]
         home_head = machine["controller.home_head_mm"]
@@ -255,7 +260,25 @@ def _lost_position(link, job, s, m, head_side, confirm):
         if home_head != head_in:
             link.move_to(home_ring + 360.0 * turns, head_in, axis="head")
         link.move_to(here[0], head_in, axis="ring")
-    return here
+    return here, point
+
+
+def _next(steps, s, k):
+    """(step, move) after move ``k - 1`` of step ``s``, rolling over to the next step."""
+    if s < len(steps) and k >= len(steps[s].moves):
+        return (s + 1, 0)
+    return (s, k)
+
+
+def _after_point(steps, s, here):
+    """The head came IN at ``here`` during step ``s``: through the approach gap (the hook is
+    undone: go on from the move after the approach) or the far gap (the hook is done)."""
+    moves = steps[s].moves
+    for k in range(len(moves) - 1, -1, -1):
+        if _near(_point(moves[k]), here):
+            return _next(steps, s, k + 1)
+    raise MachineFailure(f"the head came in at ring {here[0]:.3f}, which is neither gap of step {s + 1}; "
+                         "check the machine, then restart with --from-step N")
 
 
 def _recover_servo(link, job, s, m):
