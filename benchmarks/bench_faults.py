@@ -95,14 +95,24 @@ def matrix(plan_path, machines, points, seed, workdir):
     print(f"  total: {totals['survived']} of {totals['tried']} survived")
 
 
+def _done_count(journal):
+    try:
+        return journal.read_bytes().count(b'"kind":"done"')
+    except FileNotFoundError:
+        return 0
+
+
 def kills(plan_path, plan_seq, name, n_kills, seed, workdir):
+    """Kill the host when the journal reaches random step counts (plus a random fraction of a step)."""
     rng = random.Random(seed)
     pty = Path(workdir) / "pty"
     rec = Path(workdir) / "kill-rec.json"
     journal = Path(workdir) / "kill.journal"
+    targets = sorted(rng.sample(range(1, len(plan_seq) - 1), n_kills))
     sim = subprocess.Popen(STRINGBOT + ["simulate", "--machine", name, "--pty", str(pty), "--record", str(rec)],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     killed = runs = 0
+    problems = []
     try:
         while not pty.exists():
             time.sleep(0.05)
@@ -112,26 +122,32 @@ def kills(plan_path, plan_seq, name, n_kills, seed, workdir):
             cmd = STRINGBOT + ["wind", str(plan_path), "--machine", name, "--port", str(pty), "--yes",
                                "--journal", str(journal)] + extra
             proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-            if killed < n_kills:
-                try:
-                    proc.wait(timeout=rng.uniform(0.6, 6.0))
-                except subprocess.TimeoutExpired:
+            if killed < len(targets):
+                while proc.poll() is None and _done_count(journal) < targets[killed]:
+                    time.sleep(0.002)
+                time.sleep(rng.uniform(0.0, 0.02))
+                if proc.poll() is None:
                     proc.send_signal(signal.SIGKILL)
                     killed += 1
             out, err = proc.communicate()
             extra = ["--resume"]
             if proc.returncode == 0:
                 break
-            if proc.returncode not in (-9, 1) or runs > n_kills + 10:
-                print(f"  unexpected exit {proc.returncode}: {err.strip()[-300:]}")
+            if proc.returncode != -signal.SIGKILL:
+                problems.append(err.strip()[-200:])
+            if runs > n_kills + 10:
                 break
     finally:
         sim.send_signal(signal.SIGINT)
         sim.wait(timeout=30)
     r = json.loads(rec.read_text())
     ok = [w["pin"] for w in r["wraps"]] == plan_seq and not r["collisions"]
-    print(f"2. SIGKILL: {name}: host killed {killed} times at random moments, {runs} runs; "
-          f"{'survived: wraps == sequence, 0 collisions' if ok else 'FAILED: %d wraps, %d collisions' % (len(r['wraps']), len(r['collisions']))}")
+    print(f"2. SIGKILL: {name}: host killed {killed} times at random moments (after steps "
+          f"{', '.join(map(str, targets[:killed]))} + a random fraction of a step), {runs} runs; "
+          + ("survived: wraps == sequence, 0 collisions" if ok else
+             "FAILED: %d wraps, %d collisions" % (len(r["wraps"]), len(r["collisions"]))))
+    for p in problems:
+        print("   a run ended otherwise:", p)
 
 
 def main():
