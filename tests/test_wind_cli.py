@@ -67,6 +67,7 @@ def test_machine_failure_exits_1_with_one_line_naming_pin_step_and_resume(tmp_pa
     (["--machine", "grbl-ring", "--faults", "boom@3"], "boom@3"),
     (["--machine", "grbl-ring", "--port", "/dev/ttyNOPE", "--record", "r.json"], "simulated machine"),
     (["--machine", "grbl-ring", "--resume"], "nothing to resume"),
+    (["--machine", "grbl-ring", "--port", "sim://?machine=grbl-ring", "--resume"], "does not exist"),
     (["--machine", "grbl-ring", "--from-step", "0"], "--from-step"),
 ])
 def test_bad_input_exits_2_with_one_line(tmp_path, plan_path, capsys, args, words):

@@ -146,6 +146,10 @@ def _journal_point(state):
 
 def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=None, link_options=None):
     """Continue the winding of ``job`` from its journal (or restart at ``from_step``, from 1)."""
+    if job.dry_run:
+        raise BadInput("a dry run's simulated machine lives only as long as its command, so there is "
+                       "nothing to resume; rehearse resuming with `stringbot simulate --pty PATH` "
+                       "and --port PATH")
     state = read_journal(job.journal_path)
     job.header_check(state)
     steps, machine = job.steps, job.machine
