@@ -73,6 +73,8 @@ def main():
     ap.add_argument("--disconnected", action="store_true", help="also score the disconnected variant")
     ap.add_argument("--sheet", default=None, help="write a contact sheet PNG here")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--greedy-literal", action="store_true",
+                    help="greedy lowers 15 per thread at the working size (not scaled from ThreadTone's 500-px radius)")
     opts = ap.parse_args()
 
     from stringbot.planner.build import plan_picture
@@ -84,7 +86,8 @@ def main():
     for path in paths:
         pic = read_picture(path, size=opts.size)
         t = time.perf_counter()
-        greedy = plan_picture(path, pins=opts.pins, size=opts.size, method="greedy", picture=pic)
+        greedy = plan_picture(path, pins=opts.pins, size=opts.size, method="greedy", picture=pic,
+                              greedy_reference_radius=None if opts.greedy_literal else 500.0)
         k = greedy.stats["lines"]
         fitness = plan_picture(path, pins=opts.pins, size=opts.size, lines=k, picture=pic)
         plans = [greedy, fitness]

@@ -390,3 +390,15 @@ def test_edge_term_suppresses_chords_that_cross_edges():
     along = space.index[0, P // 2]            # top to bottom: runs along the edge
     across = space.index[P // 4, 3 * P // 4]  # right to left: crosses it
     assert d[across] > 0 and d[along] < 0.1 * d[across]
+
+
+def test_greedy_weight_is_threadtones_thread_scaled_to_the_working_size():
+    size = 101
+    pic = picture(bar_picture(size))
+    scaled = plan_picture("x", pins=60, size=size, method="greedy", lines=5000, picture=pic)
+    literal = plan_picture("x", pins=60, size=size, method="greedy", lines=5000, picture=pic,
+                           greedy_reference_radius=None)
+    assert scaled.parameters["weight_at_size"] == pytest.approx(15 * 50 / 500)
+    assert literal.parameters["weight_at_size"] == 15
+    # ten times lighter threads: the bar takes about ten times as many before every sum is <= 0
+    assert 5 * literal.stats["lines"] < scaled.stats["lines"]

@@ -78,7 +78,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
                  method="fitness", disconnected=False, importance=None, gray="decolor",
                  alpha=DEFAULTS["alpha"], beta=DEFAULTS["beta"], gamma=DEFAULTS["gamma"], T=DEFAULTS["T"],
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
-                 picture=None):
+                 picture=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"]):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -94,6 +94,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         Randomness of the decolorization (None: a fixed seed).
     picture : Picture, optional
         An already read picture (skips reading ``path``).
+    greedy_reference_radius : float or None
+        Greedy only: the picture radius at which its weight of 15 holds
+        (ThreadTone's 500); None applies 15 at the working size as it is.
 
     Returns
     -------
@@ -134,8 +137,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         from .greedy import greedy_sequence
 
         gk = {"weight": DEFAULTS["greedy_weight"], "width": DEFAULTS["greedy_width"],
-              "min_loop": DEFAULTS["greedy_min_loop"], "reference_radius": DEFAULTS["greedy_reference_radius"]}
-        params.update(gk, weight_at_size=round(gk["weight"] * (size - 1) / 2 / gk["reference_radius"], 4))
+              "min_loop": DEFAULTS["greedy_min_loop"], "reference_radius": greedy_reference_radius}
+        scale = (size - 1) / 2 / greedy_reference_radius if greedy_reference_radius else 1.0
+        params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
         seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
         from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
