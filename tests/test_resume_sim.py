@@ -116,3 +116,20 @@ def test_from_step_rewinds_from_a_chosen_step(tmp_path):
     rec = json.loads(record.read_text())
     assert [w["pin"] for w in rec["wraps"]] == plan.sequence + plan.sequence[5:]
     assert rec["collisions"] == []
+
+
+def test_locate_on_the_path_of_a_step():
+    from stringbot.motion import hook_steps
+    from stringbot.winding.resume import locate
+    machine = load_machine("grbl-ring")
+    plan = small_plan(n=6, seed=21)
+    steps = hook_steps(plan, machine)
+    s = 3
+    mv = steps[s].moves
+    a, b, c, d = [(m.ring_deg, m.head_mm) for m in mv]
+    assert locate(a, steps, s, 0, machine) == (s, 1)                 # after the approach
+    assert locate(b, steps, s, 1, machine) == (s, 2)                 # head out
+    mid = ((b[0] + c[0]) / 2, b[1])
+    assert locate(mid, steps, s, 2, machine) == (s, 2)               # inside the pitch turn
+    assert locate(d, steps, s, 3, machine) == (s + 1, 0)             # the hook is done
+    assert locate((d[0] + 50.0, 3.0), steps, s, 3, machine) is None  # nowhere on the path
