@@ -26,6 +26,16 @@ def check_output_path(path, *, what="output"):
     return path
 
 
+def _default_mode(path):
+    """Keep an existing file's mode; a new file gets 0666 less the umask, as open() would."""
+    try:
+        return os.stat(path).st_mode & 0o7777
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
 def write_atomic(path, data):
     """Write ``data`` (bytes or str) to ``path`` so that readers see old or new, never half.
 
@@ -36,6 +46,7 @@ def write_atomic(path, data):
         data = data.encode("utf-8")
     fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, _default_mode(path))
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()

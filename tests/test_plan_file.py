@@ -77,3 +77,17 @@ def test_write_into_missing_folder_refused_and_old_file_kept(tmp_path):
     with pytest.raises(BadInput, match="is a folder"):
         write_plan(small_plan(), tmp_path)
     assert path.read_text() == "old"
+
+
+def test_written_files_get_the_usual_mode_not_a_private_temp_mode(tmp_path):
+    import os
+    path = tmp_path / "p.json"
+    old = os.umask(0o022)
+    try:
+        write_plan(small_plan(), path)
+    finally:
+        os.umask(old)
+    assert path.stat().st_mode & 0o777 == 0o644
+    path.chmod(0o600)
+    write_plan(small_plan(), path)
+    assert path.stat().st_mode & 0o777 == 0o600
