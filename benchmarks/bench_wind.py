@@ -17,7 +17,6 @@
 
 import argparse
 import json
-import os
 import signal
 import statistics
 import subprocess

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from firmware_protocol.machine import load_machine
-from stringbot.errors import BadInput, Interrupted, MachineFailure
+from stringbot.errors import BadInput, MachineFailure
 from stringbot.links import open_link, sim_url
 from stringbot.motion import hook_steps
-from stringbot.planner import Plan, write_plan
+from stringbot.planner import Plan
 from stringbot.winding import Journal, Winder, read_journal
 
 GCODE_MACHINES = ["grbl-ring", "grblhal-ring", "marlin-ring"]

@@ -11,7 +11,7 @@ import re
 import time
 
 from ..motion import dialect_for
-from .base import LinkState, Status, where_of
+from .base import where_of
 from .grbl import GrblLink
 from .marlin import MarlinLink
 
