@@ -172,23 +172,26 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=N
             here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm)
         else:
             here, lost = _recover_servo(link, job, s, m)
-        if where is None:
+        if where is None and from_step is None:
             where = locate(here, steps, s, m, machine) if s < len(steps) else (len(steps), 0)
-        if where is None:
-            raise MachineFailure(f"the machine stands at ring {here[0]:.3f}, head {here[1]:.3f}, which is "
-                                 f"not on the path the journal expects (step {s + 1}, move {m + 1}); "
-                                 "check it, then restart with --from-step N")
-        s2, k2 = where
-        for i in range(state.next_step, s2):
-            journal.done(i, steps[i].pin)       # executed, now known from the machine's position
-        if from_step is not None:
+            if where is None:
+                raise MachineFailure(f"the machine stands at ring {here[0]:.3f}, head {here[1]:.3f}, which "
+                                     f"is not on the path the journal expects (step {s + 1}, move {m + 1}); "
+                                     "check it, then restart with --from-step N")
+        if from_step is None:
+            s2, k2 = where
+            for i in range(state.next_step, s2):
+                journal.done(i, steps[i].pin)   # executed, now known from the machine's position
+            if s2 < len(steps):
+                winder.ask(f"Resume at pin {steps[s2].pin} (step {s2 + 1} of {len(steps)}, move {k2 + 1})?")
+        else:
+            # after a fix by hand the machine may stand anywhere with the head IN: the
+            # restarted step's first move is a ring turn with the head IN, safe from anywhere
             if _side(machine, here[1]) != "in":
                 raise BadInput("the head is OUT; --from-step needs it IN: resume first, or move it in by hand")
             s2, k2 = from_step - 1, 0
             winder.ask(f"Restart from step {from_step} (pin {steps[s2].pin}); the steps from there on "
                        "are wound again. Go on?")
-        elif s2 < len(steps):
-            winder.ask(f"Resume at pin {steps[s2].pin} (step {s2 + 1} of {len(steps)}, move {k2 + 1})?")
         journal.append({"kind": "resume", "from_step": s2, "from_move": k2, "position_lost": lost})
         if s2 >= len(steps):
             return winder.wind(len(steps))
