@@ -118,10 +118,12 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
     from .planner.plan_file import write_plan
     from .planner.render import draw, png_bytes
 
+    mach = None
     if machine is not None:
         from firmware_protocol.machine import load_machine
 
-        ring = load_machine(machine).pins
+        mach = load_machine(machine)
+        ring = mach.pins
         if pins is not None and pins != ring:
             raise BadInput(f"--pins {pins} differs from machine {machine!r} with {ring} pins; give one of them")
         pins = ring
@@ -150,6 +152,15 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
     kind = "disconnected " if not p.connected else ""
     click.echo(f"{kind}{p.method}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
                f"diameters, {s['seconds']:.2f} s -> {output} (preview {preview})")
+    if mach is not None:
+        if not p.connected:
+            click.echo(f"machine {mach.name}: a disconnected chord set cannot be wound; no machine-time estimate")
+        else:
+            from .motion import estimate, format_duration
+
+            est = estimate(p, mach)
+            click.echo(f"machine {mach.name}: about {format_duration(est.seconds)} of winding, "
+                       f"{est.thread_m:.1f} m of thread")
 
 
 @cli.command("render")

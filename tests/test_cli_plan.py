@@ -122,6 +122,30 @@ def test_machine_gives_the_pin_count(tmp_path, picture):
     one_error_line(code, err, "differs from machine")
 
 
+def test_machine_summary_has_the_machine_time_estimate(tmp_path, picture):
+    from firmware_protocol.machine import load_machine
+
+    from stringbot.motion import estimate, format_duration
+
+    out = tmp_path / "m.json"
+    code, stdout, err = run("plan", picture, "-o", out, "--machine", "grbl-ring", "--size", "151", "--lines", "40")
+    assert code == 0, err
+    est = estimate(read_plan(out), load_machine("grbl-ring"))
+    assert est.seconds > 0 and est.thread_m > 0
+    lines = stdout.strip().splitlines()
+    assert len(lines) == 2, stdout
+    assert "grbl-ring" in lines[1] and format_duration(est.seconds) in lines[1], stdout
+    assert f"{est.thread_m:.1f} m of thread" in lines[1], stdout
+    # without --machine: the one summary line, no estimate
+    code, stdout, err = run("plan", picture, "-o", out, "--pins", "60", "--size", "101", "--lines", "40")
+    assert code == 0 and len(stdout.strip().splitlines()) == 1 and "winding" not in stdout, stdout
+    # a chord set cannot be wound: said so, no estimate
+    code, stdout, err = run("plan", picture, "-o", out, "--machine", "grbl-ring", "--size", "151", "--lines", "40",
+                            "--disconnected")
+    assert code == 0, err
+    assert "cannot be wound" in stdout and "of winding" not in stdout, stdout
+
+
 # ---- bad input: one line, exit 2, nothing overwritten ------------------------------------------
 
 def bad_pictures(tmp_path):
