@@ -156,6 +156,7 @@ def realtime_pty(name, plan, sync, n_steps, workdir, interval=0.005):
         machine = load_machine(name)
         steps = hook_steps(plan, machine)[:n_steps]
         link = open_link(str(pty), machine, sync=sync)
+        link.proto.port.timeout = interval / 5          # reads return quickly: queries go out on time
         link.proto.status_log = []
         w = Winder(link, steps, machine)
         w.start(home=machine["controller.homing"])
