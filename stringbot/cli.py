@@ -377,7 +377,7 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
             bar.update(p.done - 1)
             state["last"] = p.done - 1
         eta = _fmt_s(p.eta_s) if p.eta_s is not None else "?"
-        state["text"] = f"pin {p.pin}  ETA {eta}"
+        state["text"] = f"pin {p.pin}  ETA {eta}  (machine time left {_fmt_s(p.machine_s)})"
         bar.update(p.done - state["last"])
         state["last"] = p.done
 

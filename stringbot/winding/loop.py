@@ -42,6 +42,7 @@ class Progress:
     pin: int | None
     elapsed_s: float          # wall time of this run
     eta_s: float | None       # wall time still needed (machine-time model x measured rate)
+    machine_s: float = 0.0    # the machine-time model's seconds still to go
 
 
 @dataclass
@@ -188,7 +189,7 @@ class Winder:
         else:
             eta = remaining
         return Progress(done=self.done, total=len(self.steps), step=step.index + 1, pin=step.pin,
-                        elapsed_s=elapsed, eta_s=eta)
+                        elapsed_s=elapsed, eta_s=eta, machine_s=remaining)
 
     def _catch_up(self):
         """Journal the steps the link confirmed while stopping."""
