@@ -105,7 +105,7 @@ class _Lines(click.ParamType):
 @click.option("-T", "--sharpness", "T", type=float, default=30.0, show_default=True,
               help="T of tanh(f / T): larger spreads chords out.")
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
-@click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (CGLS).")
+@click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame, crop, start_pin, size, lines,
              importance, gray, alpha, beta, gamma, T, epsilon, iterations, no_cache):

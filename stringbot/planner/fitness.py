@@ -19,10 +19,11 @@ along an edge, ``|g_p|`` for one crossing it.  (Crossed with the gradient
 itself, the formula would suppress the chords that follow edges, the
 opposite of what the paper says the term is for.)
 
-The solve is CGLS (conjugate gradients for least squares; the iterates of
-LSQR in exact arithmetic) on the stacked system ``[W A; V] f = [W b; 0]``
-with the columns scaled to unit norm (a Jacobi preconditioner), in float32
-sparse products.
+The solve is :func:`scipy.sparse.linalg.lsqr` on the stacked system
+``[W A; V] f = [W b; 0]`` as a LinearOperator with the columns scaled to unit
+norm (a Jacobi preconditioner), its sparse products in float32.  The scaling
+changes the iterates, not the minimiser: ``f`` comes back in the units of
+``b`` (levels of the reversed picture per chord).
 """
 
 import logging
@@ -112,7 +113,7 @@ def chord_weights(space, d, *, beta, gamma):
 
 
 def solve_fitness(rowptr, chords, b, w, v, *, iterations=25, tol=1e-4):
-    """Least-squares fitness ``argmin ||W (A f - b)||^2 + ||V f||^2``.
+    """Least-squares fitness ``argmin ||W (A f - b)||^2 + ||V f||^2`` by LSQR.
 
     Parameters
     ----------
@@ -127,16 +128,17 @@ def solve_fitness(rowptr, chords, b, w, v, *, iterations=25, tol=1e-4):
     iterations : int
         Iteration limit.
     tol : float
-        Stop when the normal-equation residual has fallen by this factor
-        (at least 1e-5: the products are float32).
+        LSQR's ``atol`` and ``btol`` (at least 1e-5: the products are float32).
 
     Returns
     -------
     f : ndarray of float64, shape (m,)
     info : dict
-        ``iterations`` used and the final ``residual`` norm.
+        ``iterations`` used, the final ``residual`` norm ``||[W (A f - b); V f]||``
+        and LSQR's ``stop`` code.
     """
     import scipy.sparse as sp
+    from scipy.sparse.linalg import LinearOperator, lsqr
 
     n_pixels = len(rowptr) - 1
     m = len(v)
@@ -149,39 +151,19 @@ def solve_fitness(rowptr, chords, b, w, v, *, iterations=25, tol=1e-4):
     dscale = 1.0 / np.sqrt(np.maximum(colnorm2, 1e-12))  # unit columns: a Jacobi preconditioner
     dv = dscale * v
 
-    def M(x):  # [W A D; V D] x, as (top, bottom)
-        return (w32 * (A @ (dscale * x).astype(np.float32))).astype(np.float64), dv * x
+    def matvec(x):  # [W A D; V D] x
+        x = np.ravel(x)
+        top = (w32 * (A @ (dscale * x).astype(np.float32))).astype(np.float64)
+        return np.concatenate([top, dv * x])
 
-    def MT(top, bottom):
-        return dscale * (AT @ (w32 * top.astype(np.float32))).astype(np.float64) + dv * bottom
+    def rmatvec(r):
+        r = np.ravel(r)
+        top = (AT @ (w32 * r[:n_pixels].astype(np.float32))).astype(np.float64)
+        return dscale * top + dv * r[n_pixels:]
 
-    # CGLS (conjugate gradients on the normal equations, in the stable least-squares form;
-    # the same iterates as LSQR in exact arithmetic, without importing scipy.sparse.linalg)
-    y = np.zeros(m)
-    r_top = np.asarray(w, dtype=np.float64) * np.asarray(b, dtype=np.float64)
-    r_bot = np.zeros(m)
-    bnorm = np.linalg.norm(r_top)
-    s_ = MT(r_top, r_bot)
-    p = s_.copy()
-    gamma = s_ @ s_
-    gamma0 = gamma
-    floor_tol = max(float(tol), 1e-5)  # float32 products: no point (and no stability) beyond this
-    itn = 0
-    for itn in range(1, int(iterations) + 1):
-        q_top, q_bot = M(p)
-        qq = q_top @ q_top + q_bot @ q_bot
-        if qq <= 0:
-            break
-        alpha = gamma / qq
-        y += alpha * p
-        r_top -= alpha * q_top
-        r_bot -= alpha * q_bot
-        s_ = MT(r_top, r_bot)
-        gamma_new = s_ @ s_
-        if not np.isfinite(gamma_new) or gamma_new <= (floor_tol ** 2) * gamma0 or bnorm == 0:
-            break
-        p = s_ + (gamma_new / gamma) * p
-        gamma = gamma_new
-    r1norm = float(np.sqrt(r_top @ r_top + r_bot @ r_bot))
-    log.debug("cgls: %d iterations, residual %.4g", itn, r1norm)
-    return dscale * y, {"iterations": int(itn), "residual": float(r1norm)}
+    M = LinearOperator((n_pixels + m, m), matvec=matvec, rmatvec=rmatvec, dtype=np.float64)
+    rhs = np.concatenate([np.asarray(w, dtype=np.float64) * np.asarray(b, dtype=np.float64), np.zeros(m)])
+    t = max(float(tol), 1e-5)  # float32 products: no point (and no stability) beyond this
+    y, istop, itn, r1norm = lsqr(M, rhs, atol=t, btol=t, iter_lim=int(iterations))[:4]
+    log.debug("lsqr: %d iterations, residual %.4g, stop %d", itn, r1norm, istop)
+    return dscale * y, {"iterations": int(itn), "residual": float(r1norm), "stop": int(istop)}
