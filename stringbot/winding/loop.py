@@ -7,6 +7,7 @@ hold, waits until the machine has stopped, journals what was executed and
 raises :class:`~stringbot.errors.Interrupted`.
 """
 
+import contextlib
 import enum
 import logging
 import math
@@ -116,8 +117,22 @@ class Winder:
         self.state = WindState.CONNECTING
         info = self.link.identify()
         self.state = WindState.PREPARING
-        self.link.prepare(home=home)
+        with self.stopping_on_ctrl_c("while preparing (homing)"):
+            self.link.prepare(home=home)
         return info
+
+    @contextlib.contextmanager
+    def stopping_on_ctrl_c(self, what):
+        """Ctrl-C outside the winding proper (homing, recovering): stop the machine, then say so."""
+        try:
+            yield
+        except KeyboardInterrupt:
+            self.state = WindState.INTERRUPTED
+            try:
+                self.link.hold()
+            except (KeyboardInterrupt, MachineFailure) as exc:
+                log.warning("could not stop the machine cleanly: %s", exc)
+            raise Interrupted(f"interrupted {what}: the machine is stopped; no step was wound meanwhile") from None
 
     def ask(self, message):
         """Ask the operator (True to go on); declining stops cleanly with nothing moved."""

@@ -168,10 +168,11 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=N
         winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
         winder.state = winder.state.CONNECTING
         where = None
-        if hasattr(link, "reconnect"):
-            here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm)
-        else:
-            here, lost = _recover_servo(link, job, s, m)
+        with winder.stopping_on_ctrl_c("while reconnecting"):
+            if hasattr(link, "reconnect"):
+                here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm)
+            else:
+                here, lost = _recover_servo(link, job, s, m)
         if where is None and from_step is None:
             where = locate(here, steps, s, m, machine) if s < len(steps) else (len(steps), 0)
             if where is None:
