@@ -407,6 +407,12 @@ class GrblLink(LineLink):
             if st.stopped:
                 self._poll_quietly()
                 return st
+            if st.state == "Home":
+                # a homing cycle ignores feed hold: only a reset stops it (GRBL then alarms)
+                self.write(_RESET)
+                self.position_lost = True
+                self.drain_input(quiet=0.2, limit=2.0)
+                return self.status()
             if time.monotonic() > deadline:
                 raise self.fail(f"the machine did not stop within {timeout:.0f} s of a feed hold")
             time.sleep(0.02)
