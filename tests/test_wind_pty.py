@@ -23,13 +23,15 @@ STRINGBOT = [sys.executable, "-c", "import sys; from stringbot.cli import main; 
 class Simulator:
     """``stringbot simulate`` in a subprocess, serving one machine on a pty."""
 
-    def __init__(self, tmp_path, machine, faults=None):
+    def __init__(self, tmp_path, machine, faults=None, realtime=False):
         self.pty = tmp_path / "pty"
         self.record = tmp_path / "rec.json"
         cmd = STRINGBOT + ["simulate", "--machine", machine, "--pty", str(self.pty),
                            "--record", str(self.record)]
         if faults:
             cmd += ["--faults", faults]
+        if realtime:
+            cmd += ["--realtime"]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 30
         while not self.pty.exists():
@@ -62,8 +64,8 @@ class Simulator:
 def sim_factory(tmp_path):
     sims = []
 
-    def make(machine, faults=None):
-        sim = Simulator(tmp_path, machine, faults)
+    def make(machine, faults=None, realtime=False):
+        sim = Simulator(tmp_path, machine, faults, realtime)
         sims.append(sim)
         return sim
     yield make
@@ -138,3 +140,24 @@ def test_host_killed_with_sigkill_then_resume(tmp_path, sim_factory):
     assert kills >= 1
     assert collisions == []
     assert pins == plan.sequence
+
+
+@pytest.mark.parametrize("machine", ["grbl-ring", "marlin-ring"])
+def test_ctrl_c_on_a_realtime_machine_then_resume(tmp_path, sim_factory, machine):
+    """SIGINT mid-winding at real speed: exit 130 with the resume command; --resume finishes exactly."""
+    plan = small_plan(n=4, seed=14)
+    write_plan(plan, tmp_path / "plan.json")
+    sim = sim_factory(machine, realtime=True)
+    cmd = STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", machine, "--port", str(sim.pty),
+                       "--yes", "--journal", str(tmp_path / "j")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted at pin" in err and "--resume" in err and "Traceback" not in err
+    again = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j", "--resume")
+    assert again.returncode == 0, again.stderr
+    sim.stop()
+    pins, collisions = sim.wraps()
+    assert pins == plan.sequence and collisions == []
