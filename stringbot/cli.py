@@ -383,8 +383,11 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
 
     try:
         if resume or from_step is not None:
+            def choose(question, choices):
+                return click.prompt(question, type=click.Choice(choices), err=True)
             result = resuming.resume_plan(job, from_step=from_step, head_side=head_side,
-                                          confirm=None if yes else confirm, progress=progress)
+                                          confirm=None if yes else confirm,
+                                          choose=None if yes else choose, progress=progress)
         else:
             result = wind_plan(job, confirm=None if yes else confirm, progress=progress)
     except (Interrupted, MachineFailure) as exc:

@@ -144,8 +144,13 @@ def _journal_point(state):
     return s, m
 
 
-def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=None, link_options=None):
-    """Continue the winding of ``job`` from its journal (or restart at ``from_step``, from 1)."""
+def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=None, progress=None,
+                link_options=None):
+    """Continue the winding of ``job`` from its journal (or restart at ``from_step``, from 1).
+
+    ``confirm(question) -> bool`` and ``choose(question, choices) -> choice`` ask the
+    operator (None: do not ask; ``--yes``).
+    """
     if job.dry_run:
         raise BadInput("a dry run's simulated machine lives only as long as its command, so there is "
                        "nothing to resume; rehearse resuming with `stringbot simulate --pty PATH` "
@@ -170,7 +175,7 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=N
         where = None
         with winder.stopping_on_ctrl_c("while reconnecting"):
             if hasattr(link, "reconnect"):
-                here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm)
+                here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm, choose)
             else:
                 here, lost = _recover_servo(link, job, s, m)
         if where is None and from_step is None:
@@ -203,7 +208,7 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, progress=N
         journal.close()
 
 
-def _recover_gcode(link, job, state, s, m, head_side, confirm):
+def _recover_gcode(link, job, state, s, m, head_side, confirm, choose):
     """Reconnect a G-code machine and find where it stands; returns ((ring, head), position_lost)."""
     lost = link.reconnect()
     stop = state.last_stop
@@ -213,7 +218,7 @@ def _recover_gcode(link, job, state, s, m, head_side, confirm):
     where = None
     if here is None:
         lost = True
-        here, where = _lost_position(link, job, s, m, head_side, confirm)
+        here, where = _lost_position(link, job, s, m, head_side, confirm, choose)
     link.restore_modal()
     return here, lost, where
 
@@ -222,7 +227,7 @@ def state_resumed_after(state, stop):
     return bool(state.resumes) and state.resumes[-1].get("t", 0) > stop.get("t", 0)
 
 
-def _lost_position(link, job, s, m, head_side, confirm):
+def _lost_position(link, job, s, m, head_side, confirm, choose):
     """The firmware lost its position: decide where the machine is and tell it (homing if it can)."""
     machine, steps = job.machine, job.steps
     if s >= len(steps):
@@ -235,9 +240,9 @@ def _lost_position(link, job, s, m, head_side, confirm):
         side = sides.pop()
     elif head_side is not None:
         side = head_side
-    elif confirm is not None:
-        side = "out" if confirm("The machine lost its position while the head was moving. Is the head "
-                                "OUT (outside the pin circle)? (no = IN)") else "in"
+    elif choose is not None:
+        side = choose("The machine lost its position while the thread head was moving in or out. "
+                      "Look at it: is the eyelet inside the pin circle (in) or outside (out)?", ["in", "out"])
     else:
         raise BadInput("the machine lost its position while the thread head was moving in or out; "
                        "look at it and give --head-side in or --head-side out")
