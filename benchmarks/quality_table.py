@@ -3,8 +3,10 @@
 For each picture: greedy with the paper's automatic line count, then fitness
 (and, with --disconnected, its chord-set variant) with exactly as many lines
 as greedy drew; both scored by SSIM (plain and blurred).  Prints a table, the
-average margins and the share of short chords (span < pins / 30, the rim
-crowd the beta term is there to prevent); with --sheet PATH writes a contact sheet
+average margins, the share of short chords (span < pins / 30, the rim
+crowd the beta term is there to prevent) and the share of each drawing's
+thread pixels (at the working size) lying on white (gray > 230) parts of the
+picture, against the white share of the picture itself; with --sheet PATH writes a contact sheet
 (source | greedy | fitness) for the README.
 
 Usage: python benchmarks/quality_table.py [--images DIR] [--sheet docs/contact-sheet.png] [--json]
@@ -28,6 +30,14 @@ def short_share(plan, fraction=30):
     d = np.abs(c[:, 0] - c[:, 1])
     span = np.minimum(d, plan.pins - d)
     return float(np.mean(span < plan.pins / fraction))
+
+
+def white_share(plan, gray, level=230):
+    """Share of the drawing's thread pixels (at the working size) lying on white (gray > level) picture pixels."""
+    from stringbot.planner.render import draw
+
+    thread = draw(plan, size=gray.shape[0]) == 0
+    return float(np.mean(gray[thread] > level)) if thread.any() else 0.0
 
 
 def row_images(pic_gray, plans, frame, side):
@@ -78,6 +88,7 @@ def main():
     opts = ap.parse_args()
 
     from stringbot.planner.build import plan_picture
+    from stringbot.planner.fitness import frame_mask
     from stringbot.planner.image import read_picture
     from stringbot.planner.render import score
 
@@ -97,6 +108,8 @@ def main():
         scores = [score(p, ref.gray) for p in plans]
         r = {"image": path.name, "lines_auto": greedy.parameters["lines_target"], "lines": k,
              "short_greedy": short_share(greedy), "short_fitness": short_share(fitness),
+             "white_picture": float(np.mean(pic.gray[frame_mask(opts.size, "circle")] > 230)),
+             "white_greedy": white_share(greedy, pic.gray), "white_fitness": white_share(fitness, pic.gray),
              "greedy": scores[0]["ssim"], "fitness": scores[1]["ssim"],
              "greedy_blurred": scores[0]["ssim_blurred"], "fitness_blurred": scores[1]["ssim_blurred"],
              "seconds": round(time.perf_counter() - t, 2)}
@@ -111,7 +124,9 @@ def main():
             print(f"{path.name:<16} lines {k:5d}  SSIM greedy {r['greedy']:.3f} fitness {r['fitness']:.3f} "
                   f"({r['fitness'] - r['greedy']:+.3f})  blurred greedy {r['greedy_blurred']:.3f} "
                   f"fitness {r['fitness_blurred']:.3f} ({r['fitness_blurred'] - r['greedy_blurred']:+.3f})  "
-                  f"short chords greedy {100 * r['short_greedy']:.0f}% fitness {100 * r['short_fitness']:.0f}%{extra}")
+                  f"short chords greedy {100 * r['short_greedy']:.0f}% fitness {100 * r['short_fitness']:.0f}%  "
+                  f"thread on white greedy {100 * r['white_greedy']:.0f}% fitness {100 * r['white_fitness']:.0f}% "
+                  f"(picture {100 * r['white_picture']:.0f}%){extra}")
             sys.stdout.flush()
     plain = np.mean([r["fitness"] - r["greedy"] for r in results])
     blurred = np.mean([r["fitness_blurred"] - r["greedy_blurred"] for r in results])
