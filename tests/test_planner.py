@@ -243,6 +243,13 @@ def test_solve_matches_dense_least_squares():
     rowptr, chords = pixel_chords(space, size, cache=False)
     got, info = solve_fitness(rowptr, chords, b, w, v, iterations=500, tol=1e-10)
     assert np.abs(got - want).max() < 2e-3 * np.abs(want).max()
+    assert info["stop"] in (1, 2) and info["iterations"] < 500  # converged, not stopped by the limit
+    resid = np.concatenate([w * (A @ got - b), v * got])
+    assert abs(info["residual"] - np.linalg.norm(resid)) < 1e-3 * np.linalg.norm(resid)
+    # the iteration limit holds, and a cut-short solve is further from the minimiser
+    early, info3 = solve_fitness(rowptr, chords, b, w, v, iterations=3, tol=1e-10)
+    assert info3["iterations"] == 3 and info3["stop"] == 7
+    assert np.abs(early - want).max() > np.abs(got - want).max()
 
 
 def test_fitness_is_high_on_chords_through_the_dark_bar():
