@@ -400,10 +400,7 @@ class GrblLink(LineLink):
         self.write(b"!")
         deadline = time.monotonic() + timeout
         while True:
-            try:
-                st = self.status()
-            except Exception:
-                raise
+            st = self.status()
             if st.stopped:
                 self._poll_quietly()
                 return st
@@ -418,6 +415,7 @@ class GrblLink(LineLink):
             time.sleep(0.02)
 
     def _poll_quietly(self):
+        """Take the answers that are still coming once stopped (best effort)."""
         try:
             while True:
                 line = self.readline(0.05)
@@ -432,7 +430,8 @@ class GrblLink(LineLink):
             return
 
     def stop_quietly(self, hold=True):
-        """After an error: feed hold and flush, best effort (the real error is raised by the caller)."""
+        """After an error: feed hold, best effort (the caller raises the real error).  What is
+        still queued stays queued: resume flushes it once the machine stands still."""
         state = self.state
         try:
             if hold:
