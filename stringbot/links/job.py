@@ -131,9 +131,10 @@ class GcodeMachineLink:
             if offset is not None:
                 pos = tuple(p - o for p, o in zip(pos, offset))
         else:
-            pos = st.mpos
-            if pos is None:
-                return None
+            axes = st.fields.get("axes") or {}
+            ring = axes.get(self.machine["controller.ring_axis"])
+            head = axes.get(self.machine["controller.head_axis"])
+            return None if ring is None or head is None else (ring, head)
         return self._pick(pos)
 
     def _work_offset(self):

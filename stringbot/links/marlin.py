@@ -13,7 +13,7 @@ import logging
 import re
 import time
 
-from .base import FirmwareInfo, LineLink, LinkState, Where, strip_comment, where_of
+from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment, where_of
 from .codes import marlin_checksum
 
 __all__ = ["MarlinLink", "numbered"]
@@ -105,9 +105,13 @@ class MarlinLink(LineLink):
     # ---- state -----------------------------------------------------------------------
     def status(self, timeout=None):
         """``M114``: the position Marlin believes in (no run state: Marlin has none to report)."""
-        from .base import Status
         self.command("M114", timeout=timeout)
-        return Status(state="Idle", mpos=self.last_position)
+        return self._status()
+
+    def _status(self):
+        pos = self.last_position or {}
+        mpos = tuple(pos[a] for a in "XYZA" if a in pos) or None
+        return Status(state="Idle", mpos=mpos, fields={"axes": dict(pos)})
 
     def command(self, text, timeout=None):
         self._send(text, Where(), timeout or self.response_timeout)
@@ -240,7 +244,7 @@ class MarlinLink(LineLink):
                 raise self.fail("the firmware reset itself mid-job (it printed its start banner); "
                                 "its position may be lost", where)
             if line.startswith("X:") and _POS.search(line):
-                self.last_position = tuple(float(v) for _, v in _POS.findall(line.split("Count")[0]))
+                self.last_position = {k: float(v) for k, v in _POS.findall(line.split("Count")[0])}
                 continue
             if low.startswith(("echo:", "//", "cap:", "firmware_name")):
                 log.info("machine says: %s", line)
@@ -260,8 +264,7 @@ class MarlinLink(LineLink):
         if pending is not None:
             n, where = pending
             self._await(n, where, timeout or self.motion_timeout)
-        from .base import Status
-        return Status(state="Idle", mpos=self.last_position)
+        return self._status()
 
     def stop_quietly(self, hold=True):
         """Nothing to do: at most one line is ever queued, and it is the one that failed."""
