@@ -154,6 +154,9 @@ class GcodeMachineLink:
 
     def _pick(self, pos):
         names = self.axes
+        for line in getattr(self.proto.info, "lines", ()) or ():
+            if line.startswith("[AXS:"):            # grblHAL names its axes in $I
+                names = line.rstrip("]").split(":")[-1]
         values = dict(zip(names, pos))
         ring = values.get(self.machine["controller.ring_axis"])
         head = values.get(self.machine["controller.head_axis"])
