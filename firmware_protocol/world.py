@@ -110,6 +110,7 @@ class World:
         self.ring_deg = 0.0
         self.head_mm = float(machine["head.in_mm"])
         self.wraps = []
+        self._wrap_json = []        # wraps already serialised for the record file
         self.collisions = []
         self.moves = 0
         self.ring_travel_deg = 0.0
@@ -239,4 +240,11 @@ class World:
         return True
 
     def _save(self):
-        _write_atomic(self.record_path, json.dumps(self.record(), indent=1) + "\n")
+        # The wraps list only grows: serialise each wrap once and join, so that rewriting the
+        # record after every wrap stays linear in its size (a full plan is thousands of wraps).
+        frags = self._wrap_json
+        frags.extend(json.dumps(w.as_dict()) for w in self.wraps[len(frags):])
+        rest = self.record()
+        del rest["wraps"]
+        head = json.dumps(rest, indent=1)[:-2]  # drop the closing "\n}"
+        _write_atomic(self.record_path, head + ',\n "wraps": [\n  ' + ",\n  ".join(frags) + "\n ]\n}\n")

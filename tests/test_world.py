@@ -278,3 +278,23 @@ def test_segments_split_anywhere_give_the_same_wraps(machine):
             w.move(here[0] + f * (target[0] - here[0]), here[1] + f * (target[1] - here[1]))
         here = target
     assert w.wraps == [Wrap(100, 1), Wrap(101, 1)] and w.collisions == []
+
+
+def test_record_file_equals_the_record_after_many_wraps(tmp_path):
+    import json
+
+    from firmware_protocol.machine import load_machine
+    from firmware_protocol.world import World
+
+    path = tmp_path / "rec.json"
+    w = World(load_machine("grbl-ring"), record_path=path)
+    half = w.machine.pitch_deg / 2
+    for k in (5, 9, 9, 299, 0, 150):
+        a = w.machine.pin_angle(k)
+        w.move(a - half, 0.0)
+        w.move(a - half, 12.0)
+        w.move(a + half, 12.0)
+        w.move(a + half, 0.0)
+    on_disk = json.loads(path.read_text())
+    assert [x["pin"] for x in on_disk["wraps"]] == [5, 9, 9, 299, 0, 150]
+    assert on_disk == json.loads(json.dumps(w.record()))
