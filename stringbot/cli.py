@@ -345,7 +345,8 @@ def _resume_command(plan, machine_name, port, journal):
               help="Restart from step N (numbered from 1) after fixing something by hand.")
 @click.option("--head-side", type=click.Choice(["in", "out"]), default=None,
               help="On resume, where the thread head is when the journal cannot know.")
-@click.option("--status", "show_status", is_flag=True, help="Show the journal's state and exit.")
+@click.option("--status", "show_status", is_flag=True,
+              help="Show the journal's state and exit (without --port: the real winding's journal if any).")
 @click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
 @click.option("--realtime", is_flag=True, help="Dry run: the simulated machine moves at real speed.")
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
@@ -354,6 +355,12 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     from .winding import load_job, wind_plan
     from .winding import resume as resuming
 
+    if show_status and port is None and journal is None:
+        from .winding.journal import journal_path_for
+
+        real = journal_path_for(plan)  # the machine's winding, not a dry run, is what --status is for
+        if real.exists():
+            journal = str(real)
     job = load_job(plan, machine_name, port=port, record=record, journal=journal,
                    realtime=realtime, faults=faults)
     if show_status:
@@ -444,3 +451,7 @@ def simulate(machine_name, pty_path, record, realtime, faults):
         server.serve()
     finally:
         server.close()
+
+
+if __name__ == "__main__":
+    main()
