@@ -334,16 +334,13 @@ def test_ctrl_c_through_the_wind_loop_holds_and_journals_the_position(machine, t
     assert emu.ring.motion is None and emu.ring.get("Torque Enable") == 1    # held, thread tensioned
 
 
-AMBIGUOUS = pytest.mark.xfail(reason="power lost one servo turn into a two-turn ring move: resume_plan "
-                               "re-bases from the move's planned start, not from the journaled last "
-                               "reading (link.position() is not journaled on a failure yet)", strict=False)
-
-
-@pytest.mark.parametrize("fault", [pytest.param("power@37", marks=AMBIGUOUS), "power@38", "power@39",
+@pytest.mark.parametrize("fault", ["power@37", "power@38", "power@39",
                                    "power@40", "power@41", "power@60", "power@62", "hardware@39"])
 def test_stringbot_resume_after_a_servo_fault_is_exact(machine, tmp_path, fault):
     """The wind loop fails on a servo power loss (or hardware error) halfway through a move of a
-    step; `--resume` (resume_plan) re-bases the ring and finishes the winding exactly."""
+    step; `--resume` (resume_plan) re-bases the ring and finishes the winding exactly.  power@37
+    strikes one servo turn into a two-turn ring move: the plan's start of the move would be a
+    whole turn off as a re-base hint; the journaled last reading is not."""
     from stringbot.planner import write_plan
     from stringbot.winding import load_job, read_journal, wind_plan
     from stringbot.winding.resume import resume_plan
@@ -362,6 +359,69 @@ def test_stringbot_resume_after_a_servo_fault_is_exact(machine, tmp_path, fault)
     assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
     steps = hook_steps(plan, machine)
     assert [w.direction for w in world.wraps] == [s.direction for s in steps]
+
+
+def _lose_power_along_the_first_long_ring_move(emu, fraction, min_ticks):
+    """Cut the servo power ``fraction`` of the way (by distance) along the first ring motion of at
+    least ``min_ticks``; returns [(start, goal, ticks at the cut)] once it has been armed."""
+    from firmware_protocol.emulators.dynamixel import Fault, FaultKind
+
+    started, armed = emu._motion_started, []
+
+    def hook(servo):
+        started(servo)
+        mo = servo.motion
+        if armed or servo is not emu.ring or mo is None or abs(mo.goal - mo.start) < min_ticks:
+            return
+        target = fraction * abs(mo.goal - mo.start)
+        lo, hi = mo.t0, mo.end                      # the profile's position is monotonic in time
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if abs(mo.at(mid)[0] - mo.start) < target else (lo, mid)
+        armed.append((mo.start, mo.goal, mo.at(hi)[0]))
+        emu._events.append((hi, "power_off", Fault(FaultKind.POWER_LOSS, at=0)))
+
+    emu._motion_started = hook
+    return armed
+
+
+@pytest.mark.parametrize("fraction", [0.1, 0.4, 0.6, 0.9])
+def test_resume_after_a_power_loss_along_a_two_turn_ring_move(machine, tmp_path, fraction):
+    """Power lost 10%, 40%, 60% and 90% of the way along a 180-degree ring jump (two servo turns
+    with the 4:1 belt).  The stop record keeps the last reading with torque on, `--resume`
+    re-bases from it (not from the move's start, a turn or two off past 25%) and the winding
+    ends exactly as planned."""
+    from stringbot.planner import write_plan
+    from stringbot.winding import load_job, read_journal, wind_plan
+    from stringbot.winding.resume import resume_plan
+
+    plan = make_plan([0, 150, 1, 151, 2, 152, 3])
+    write_plan(plan, tmp_path / "plan.json")
+    server, emu, world = serve(machine)
+    tpt = machine["controller.ticks_per_turn"]
+    cut = _lose_power_along_the_first_long_ring_move(emu, fraction, 1.9 * tpt)
+    try:
+        with pytest.raises(MachineFailure, match="lost torque"):
+            wind_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=server.path))
+        state = read_journal(tmp_path / "plan.json.journal")
+        result = resume_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=server.path))
+    finally:
+        server.close()
+    assert len(cut) == 1
+    start, goal, at_cut = cut[0]
+    assert abs(at_cut - start) == pytest.approx(fraction * abs(goal - start), abs=2)
+    stop = state.last_stop
+    assert stop["reason"] == "failed" and stop["position_lost"] and 0 < state.next_step < len(plan.sequence)
+    # the journaled reading is the last one before the cut: a fraction of a servo turn behind it
+    gear = machine["controller.gear_ratio"]
+    ring_at_cut = at_cut / tpt * 360.0 / gear
+    assert stop["position"] is not None
+    assert abs(stop["position"][0] - ring_at_cut) < 0.25 * 360.0 / gear
+    assert result.steps_done == len(plan.sequence)
+    assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
+    steps = hook_steps(plan, machine)
+    assert [w.direction for w in world.wraps] == [s.direction for s in steps]
+    assert not world.head_out
 
 
 def test_ctrl_c_mid_move_then_stringbot_resume_is_exact(machine, tmp_path):

@@ -133,3 +133,37 @@ def test_locate_on_the_path_of_a_step():
     assert locate(mid, steps, s, 2, machine) == (s, 2)               # inside the pitch turn
     assert locate(d, steps, s, 3, machine) == (s + 1, 0)             # the hook is done
     assert locate((d[0] + 50.0, 3.0), steps, s, 3, machine) is None  # nowhere on the path
+
+
+def test_locate_within_a_servo_links_arrival_tolerance():
+    """A servo arrives within a few ticks of a goal (0.0989 ring degrees on dynamixel-ring), more
+    than the fixed 0.01: resume locates it with the link's ``position_tolerance``, and a link
+    without one (G-code) keeps 0.01."""
+    from types import SimpleNamespace
+
+    from stringbot.links.dynamixel import DynamixelLink
+    from stringbot.motion import hook_steps
+    from stringbot.winding.resume import TOL, locate, tolerance
+    machine = load_machine("dynamixel-ring")
+    steps = hook_steps(small_plan(n=6, seed=21), machine)
+    s = 3
+    a, b, c, d = [(m.ring_deg, m.head_mm) for m in steps[s].moves]
+    tol = tolerance(DynamixelLink(machine, "loop://"))
+    assert tol == (pytest.approx(0.0989, abs=1e-4), pytest.approx(0.132))
+    assert tolerance(SimpleNamespace()) == (TOL, TOL)
+    assert tolerance(SimpleNamespace(position_tolerance=(0.001, 0.5))) == (TOL, 0.5)
+    # arrived 3 ticks past the approach's end, or 3 ticks short of the pitch turn's, with the
+    # head 4 ticks off IN: the fixed 0.01 finds neither
+    short = 3 / 45.51
+    prev = steps[s - 1].moves[-1].ring_deg
+    ahead = 1.0 if a[0] > prev else -1.0             # the approach's direction
+    at_a = (a[0] + ahead * short, a[1] + 0.09)
+    turn = 1.0 if c[0] > b[0] else -1.0
+    at_c = (c[0] - turn * short, c[1] + 0.09)
+    assert locate(at_a, steps, s, 0, machine) is None
+    assert locate(at_a, steps, s, 0, machine, tol) == (s, 1)
+    assert locate(at_c, steps, s, 3, machine) is None
+    assert locate(at_c, steps, s, 3, machine, tol) == (s, 3)
+    mid = ((b[0] + c[0]) / 2, b[1])                   # inside the pitch turn, the head OUT
+    assert locate((mid[0], mid[1] - 0.1), steps, s, 2, machine, tol) == (s, 2)
+    assert locate((mid[0], mid[1] - 0.3), steps, s, 2, machine, tol) is None    # 0.3 mm is off the path

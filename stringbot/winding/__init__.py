@@ -29,9 +29,16 @@ The wind loop drives a machine through a *step-level link*; the G-code link
     (those confirmed while stopping).
 ``position() -> (ring_deg, head_mm) | None``
     Where the machine believes it is, in the job's coordinates (None: lost).
-``stop_point() -> {"step_index", "move"}``
+``stop_point() -> {"step_index", "move"[, "position"]}``
     The step not yet handed over and the move of it that was running, for the
-    journal's stop record.
+    journal's stop record; no I/O.  A link that knows its last trusted
+    ``position`` without asking the device (a servo link: the last reading
+    with torque on) adds it; the stop record of a failure keeps it, and a
+    resume re-bases a servo ring from it (see ``position_tolerance`` below).
+``position_tolerance``
+    Optional attribute ``(ring_deg, head_mm)``: how far ``position()`` may be
+    from a planned point the machine arrived at; resume locates the machine on
+    the journal's path within it (at least 0.01).
 ``on_move``
     Attribute: ``callable(step, move_index)`` set by the wind loop, called once a
     move has been executed (the journal records moves that leave the head OUT).

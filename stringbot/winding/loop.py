@@ -249,8 +249,13 @@ class Winder:
         point = None
         if hasattr(self.link, "stop_point"):
             try:
-                point = self.link.stop_point()
-                point = {"step_index": point["step_index"], "move": point["move"]}
+                stop = self.link.stop_point()
+                point = {"step_index": stop["step_index"], "move": stop["move"]}
+                if pos is None:
+                    # a failure (no hold, no status): a link that knows its last trusted
+                    # position without I/O (a servo link's last reading with torque on)
+                    # gives it here; it is the resume's re-base hint after a power loss
+                    pos = stop.get("position")
             except Exception:
                 point = None
         try:

@@ -42,11 +42,11 @@ log = logging.getLogger(__name__)
 TOL = 0.01       # degrees / mm: positions come back with 3 decimals
 
 
-def _near(a, b):
-    return abs(a[0] - b[0]) <= TOL and abs(a[1] - b[1]) <= TOL
+def _near(a, b, tol=(TOL, TOL)):
+    return abs(a[0] - b[0]) <= tol[0] and abs(a[1] - b[1]) <= tol[1]
 
 
-def _on_segment(p, a, b):
+def _on_segment(p, a, b, tol=(TOL, TOL)):
     """``p`` strictly inside the straight segment a -> b (the moves are straight lines)."""
     dr, dh = b[0] - a[0], b[1] - a[1]
     length2 = dr * dr + dh * dh
@@ -56,7 +56,18 @@ def _on_segment(p, a, b):
     if t <= 0.0 or t >= 1.0:
         return False
     q = (a[0] + t * dr, a[1] + t * dh)
-    return _near(p, q)
+    return _near(p, q, tol)
+
+
+def tolerance(link):
+    """(ring_deg, head_mm) within which ``locate`` accepts a position: TOL, or a link's
+    ``position_tolerance`` (a servo's arrival tolerance) where that is larger."""
+    own = getattr(link, "position_tolerance", None)
+    if own is None:
+        return (TOL, TOL)
+    if isinstance(own, (int, float)):
+        own = (own, own)
+    return (max(TOL, float(own[0])), max(TOL, float(own[1])))
 
 
 def _point(move):
@@ -70,16 +81,17 @@ def start_point(steps, s, machine):
     return _point(steps[s - 1].moves[-1])
 
 
-def locate(p, steps, s, m, machine):
+def locate(p, steps, s, m, machine, tol=(TOL, TOL)):
     """Where on the path from (step ``s``, move ``m``) on the machine at ``p`` stands.
 
     Returns ``(step, move)``: continue with that move of that step (``move`` 0 of
     the next step when ``p`` is the end of step ``s``), or None if ``p`` is not on
-    the path.
+    the path.  ``tol``: (ring_deg, head_mm) how far ``p`` may be from the path
+    (see :func:`tolerance`).
     """
     for step_i in (s, s + 1):
         if step_i >= len(steps):
-            if step_i == len(steps) and _near(p, _point(steps[-1].moves[-1])):
+            if step_i == len(steps) and _near(p, _point(steps[-1].moves[-1]), tol):
                 return (len(steps), 0)
             break
         moves = steps[step_i].moves
@@ -87,10 +99,10 @@ def locate(p, steps, s, m, machine):
         prev = _point(moves[first - 1]) if first > 0 else start_point(steps, step_i, machine)
         for k in range(first, len(moves)):
             target = _point(moves[k])
-            if _near(p, prev) or _on_segment(p, prev, target):
+            if _near(p, prev, tol) or _on_segment(p, prev, target, tol):
                 return (step_i, k)
             prev = target
-        if _near(p, prev):
+        if _near(p, prev, tol):
             return (step_i + 1, 0)
     return None
 
@@ -132,12 +144,20 @@ def status_lines(job):
     return lines
 
 
+def _live_stop(state):
+    """The journal's last stop record if nothing was wound after it (no later resume), else None."""
+    stop = state.last_stop
+    if stop is None or (state.resumes and stop.get("t", 0) < state.resumes[-1].get("t", 0)):
+        return None
+    return stop
+
+
 def _journal_point(state):
     """(step, move) the journal leaves the job at, sharpened by a live host's stop record."""
     s, m = state.next_step, state.next_move
-    stop = state.last_stop
+    stop = _live_stop(state)
     at = stop.get("at") if stop else None
-    if at and stop is state.stops[-1] and (not state.resumes or stop.get("t", 0) >= state.resumes[-1].get("t", 0)):
+    if at:
         cand = (int(at["step_index"]), int(at["move"]))
         if cand > (s, m):
             s, m = cand
@@ -177,9 +197,10 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
             if hasattr(link, "reconnect"):
                 here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm, choose)
             else:
-                here, lost = _recover_servo(link, job, s, m)
+                here, lost = _recover_servo(link, job, state, s, m)
         if where is None and from_step is None:
-            where = locate(here, steps, s, m, machine) if s < len(steps) else (len(steps), 0)
+            where = (locate(here, steps, s, m, machine, tolerance(link)) if s < len(steps)
+                     else (len(steps), 0))
             if where is None:
                 raise MachineFailure(f"the machine stands at ring {here[0]:.3f}, head {here[1]:.3f}, which "
                                      f"is not on the path the journal expects (step {s + 1}, move {m + 1}); "
@@ -294,11 +315,21 @@ def _after_point(steps, s, here):
                          "check the machine, then restart with --from-step N")
 
 
-def _recover_servo(link, job, s, m):
-    """A servo link re-bases itself from the journal's point; its position is then read back."""
+def _recover_servo(link, job, state, s, m):
+    """A servo link re-bases itself from the journal; its position is then read back.
+
+    The hint is the position the live host's stop record keeps (the last reading
+    with torque on, close to where the power went); without one, the planned
+    start of the interrupted move, which is a whole servo turn off when the power
+    went more than half a servo turn into a long ring move.
+    """
     steps, machine = job.steps, job.machine
     link.identify()
-    if s < len(steps):
+    stop = _live_stop(state)
+    position = stop.get("position") if stop else None
+    if _valid_position(position):
+        hint = (float(position[0]), float(position[1]))
+    elif s < len(steps):
         hint = _point(steps[s].moves[m - 1]) if m > 0 else start_point(steps, s, machine)
     else:
         hint = _point(steps[-1].moves[-1])
@@ -306,3 +337,8 @@ def _recover_servo(link, job, s, m):
     if here is None:
         here = link.position()
     return tuple(here), False
+
+
+def _valid_position(position):
+    return (isinstance(position, (list, tuple)) and len(position) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in position))
