@@ -456,3 +456,51 @@ def test_ctrl_c_mid_move_then_stringbot_resume_is_exact(machine, tmp_path):
         server.close()
     assert 0 < stopped < len(plan.sequence) and result.steps_done == len(plan.sequence)
     assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
+
+
+@pytest.mark.parametrize("fraction", [0.3, 0.7])
+def test_host_and_servo_power_lost_together_on_a_long_move_asks_which_pin(machine, tmp_path, fraction):
+    """The host dies with the servos' power (no stop record): along a two-turn ring move the
+    encoder cannot tell the turn.  Without an operator the resume stops and names the
+    candidate pins; with one, the pin that really faces the head is chosen and the
+    winding ends exactly as planned."""
+    import json
+
+    from stringbot.planner import write_plan
+    from stringbot.winding import load_job, wind_plan
+    from stringbot.winding.resume import resume_plan
+
+    plan = make_plan([0, 150, 1, 151, 2, 152, 3])
+    write_plan(plan, tmp_path / "plan.json")
+    server, emu, world = serve(machine)
+    tpt = machine["controller.ticks_per_turn"]
+    cut = _lose_power_along_the_first_long_ring_move(emu, fraction, 1.9 * tpt)
+    journal = tmp_path / "plan.json.journal"
+    asked = []
+
+    def facing_pin(question, choices):
+        """The operator looks at the ring and names the listed pin nearest the head."""
+        asked.append(choices)
+        at = (world.ring_deg - machine["ring.pin0_angle_deg"]) / machine.pitch_deg % machine.pins
+        P = machine.pins
+        return min(choices, key=lambda c: min(abs(int(c) - at), P - abs(int(c) - at)))
+
+    try:
+        with pytest.raises(MachineFailure, match="lost torque"):
+            wind_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=server.path))
+        lines = journal.read_text().splitlines()
+        assert json.loads(lines[-1])["kind"] == "stop"
+        journal.write_text("\n".join(lines[:-1]) + "\n")      # the host died: no stop record
+        ring_before = world.ring_deg
+        with pytest.raises(MachineFailure, match="which pin faces the head"):
+            resume_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=server.path))
+        assert world.ring_deg == ring_before                 # refusing moved nothing
+        wraps_before = list(world.wraps)
+        result = resume_plan(load_job(tmp_path / "plan.json", "dynamixel-ring", port=server.path),
+                             choose=facing_pin)
+    finally:
+        server.close()
+    assert len(cut) == 1 and len(asked) == 1 and len(asked[0]) >= 2
+    assert wraps_before == world.wraps[:len(wraps_before)]
+    assert result.steps_done == len(plan.sequence)
+    assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []

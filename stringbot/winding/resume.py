@@ -29,6 +29,7 @@ the winding continues with the interrupted move.
 
 import datetime
 import logging
+import math
 
 from ..errors import BadInput, MachineFailure
 from ..links import open_link
@@ -197,7 +198,7 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
             if hasattr(link, "reconnect"):
                 here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm, choose)
             else:
-                here, lost = _recover_servo(link, job, state, s, m)
+                here, lost = _recover_servo(link, job, state, s, m, choose)
         if where is None and from_step is None:
             where = (locate(here, steps, s, m, machine, tolerance(link)) if s < len(steps)
                      else (len(steps), 0))
@@ -315,28 +316,64 @@ def _after_point(steps, s, here):
                          "check the machine, then restart with --from-step N")
 
 
-def _recover_servo(link, job, state, s, m):
-    """A servo link re-bases itself from the journal; its position is then read back.
+def _recover_servo(link, job, state, s, m, choose=None):
+    """Bring a servo link up after a stop; where the ring lost its turn count, restore it.
 
-    The hint is the position the live host's stop record keeps (the last reading
-    with torque on, close to where the power went); without one, the planned
-    start of the interrupted move, which is a whole servo turn off when the power
-    went more than half a servo turn into a long ring move.
+    The encoders are exact within a servo turn; only the ring's turn count goes with
+    the power.  Where it went, the ring stands at ``reading + k * turn`` for some
+    whole ``k``, somewhere between two points the journal knows:
+
+    * the link saw the power go (its stop record says ``position_lost``): at its
+      last reading with torque on, kept in the stop record;
+    * the link failed otherwise (a pulled cable) and the power went later: between
+      that reading and the target of the interrupted move (the servo went on);
+    * the host died too (no stop record): between the interrupted move's start
+      and its target.
+
+    One candidate on that stretch is taken; several (a stretch longer than a servo
+    turn) are put to the operator as the pins that would face the head, and
+    without an operator the resume stops rather than guess.
     """
     steps, machine = job.steps, job.machine
     link.identify()
-    stop = _live_stop(state)
-    position = stop.get("position") if stop else None
-    if _valid_position(position):
-        hint = (float(position[0]), float(position[1]))
-    elif s < len(steps):
-        hint = _point(steps[s].moves[m - 1]) if m > 0 else start_point(steps, s, machine)
+    here = link.prepare(home=False)
+    here = tuple(link.position() if here is None else here)
+    if not getattr(link, "position_lost", False):
+        return here, False            # the servos kept power: their turn count is right
+    if s < len(steps):
+        start = _point(steps[s].moves[m - 1]) if m > 0 else start_point(steps, s, machine)
+        target = _point(steps[s].moves[m]) if m < len(steps[s].moves) else start
     else:
-        hint = _point(steps[-1].moves[-1])
-    here = link.prepare(home=False, resume_at=hint)
-    if here is None:
-        here = link.position()
-    return tuple(here), False
+        start = target = _point(steps[-1].moves[-1])
+    stop = _live_stop(state)
+    reading = stop.get("position") if stop else None
+    if _valid_position(reading):
+        start = (float(reading[0]), float(reading[1]))
+        if stop.get("position_lost"):
+            target = start
+    turn = 360.0 / machine["controller.gear_ratio"]
+    lo, hi = min(start[0], target[0]), max(start[0], target[0])
+    tol = tolerance(link)[0]
+    k0, k1 = math.floor((lo - here[0]) / turn) - 1, math.ceil((hi - here[0]) / turn) + 1
+    candidates = [here[0] + k * turn for k in range(k0, k1 + 1) if lo - tol <= here[0] + k * turn <= hi + tol]
+    if hi - lo < turn / 2 or len(candidates) <= 1:
+        ring = candidates[0] if len(candidates) == 1 else start[0]  # else: the turns nearest start
+    else:
+        def facing(ring_deg):
+            return round((ring_deg - machine["ring.pin0_angle_deg"]) / machine.pitch_deg) % machine.pins
+
+        pins = [str(facing(c)) for c in candidates]
+        if choose is None:
+            if hasattr(link, "torque_off"):
+                link.torque_off()     # as the power left it: the next resume sees the turn count lost
+            raise MachineFailure(f"after the power loss the ring could be at any of {len(candidates)} servo "
+                                 f"turns (pins {', '.join(pins)} facing the head); run --resume without "
+                                 "--yes and say which pin faces the head", step=s, pin=steps[min(s, len(steps) - 1)].pin)
+        question = (f"The servos lost power on a {hi - lo:.0f}-degree stretch of ring travel, longer than "
+                    f"one servo turn ({turn:g} degrees of ring): the encoder cannot tell which turn the ring "
+                    f"is on. Look at the ring: which of pins {', '.join(pins)} is at (or next to) the thread head?")
+        ring = candidates[pins.index(str(choose(question, pins)))]
+    return tuple(link.set_position(ring, here[1])), False
 
 
 def _valid_position(position):
