@@ -74,20 +74,6 @@ def emulator_link(name, faults=None):
     return gcode_machine_link(EmulatorPort(emu), machine), world, emu
 
 
-def sim_available(machine):
-    try:
-        link = open_link(sim_url(machine), load_machine(machine))
-    except Exception:
-        return False
-    link.close()
-    return True
-
-
-def need_sim(machine):
-    if not sim_available(machine):
-        pytest.skip(f"sim:// for {machine} has not landed yet (firmware_protocol.urlhandler)")
-
-
 def wraps_of(record_path):
     rec = json.loads(open(record_path).read())
     return [w["pin"] for w in rec["wraps"]], rec["collisions"]
@@ -95,7 +81,6 @@ def wraps_of(record_path):
 
 @pytest.mark.parametrize("name", GCODE_MACHINES)
 def test_wind_through_sim_equals_the_plan(tmp_path, name):
-    need_sim(name)
     machine = load_machine(name)
     plan = small_plan()
     steps = hook_steps(plan, machine)
@@ -121,7 +106,6 @@ def test_wind_through_sim_equals_the_plan(tmp_path, name):
 
 
 def test_wrong_dialect_is_refused_through_sim(tmp_path):
-    need_sim("grbl-ring")
     marlin = load_machine("marlin-ring")
     link = open_link(sim_url("grbl-ring"), marlin)
     try:
