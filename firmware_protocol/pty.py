@@ -23,9 +23,27 @@ import select
 import time
 import tty
 
-__all__ = ["PtyServer"]
+__all__ = ["PtyServer", "PtyPathError", "check_pty_path"]
 
 log = logging.getLogger(__name__)
+
+# where os.ttyname puts a pty's slave side (Linux; macOS)
+_PTY_PREFIXES = ("/dev/pts/", "/dev/ttys")
+
+
+class PtyPathError(ValueError):
+    """``path`` exists and is not a symlink to a pseudo-terminal: it is never replaced."""
+
+
+def check_pty_path(path):
+    """Raise :class:`PtyPathError` unless ``path`` is absent or a (live or dangling) symlink to a pty."""
+    if not os.path.lexists(path):
+        return
+    if os.path.islink(path) and os.readlink(path).startswith(_PTY_PREFIXES):
+        return
+    kind = "a folder" if os.path.isdir(path) else "a symlink elsewhere" if os.path.islink(path) else "a file"
+    raise PtyPathError(f"{path!r} exists and is {kind}, not a symlink to a pseudo-terminal; "
+                       "expected a new path (it is never replaced)")
 
 
 class PtyServer:
@@ -35,7 +53,9 @@ class PtyServer:
     ----------
     emulator : firmware_protocol.emulators.base.Emulator
     path : str or path-like
-        Where the symlink to the pty lives (replaced if it exists).
+        Where the symlink to the pty lives.  It must not exist, or be a symlink to a pty (a
+        leftover of an earlier server, dangling or not); anything else raises :class:`PtyPathError`
+        and is left untouched.
     realtime : bool
         Run the emulator's clock at wall-clock speed (default: as fast as possible).
     reopen_delay : float
@@ -58,11 +78,18 @@ class PtyServer:
 
     # ---- the pty ----------------------------------------------------------------------------
     def start(self):
-        """Open the first pty and point ``path`` at it; returns ``self``."""
+        """Open the first pty and point ``path`` at it; returns ``self``.
+
+        Raises
+        ------
+        PtyPathError
+            If ``path`` exists and is not a symlink to a pty (nothing is opened or changed).
+        """
         self._open()
         return self
 
     def _open(self):
+        check_pty_path(self.path)   # also on a reopen: a file put there meanwhile is not clobbered
         master, slave = os.openpty()
         tty.setraw(slave)
         name = os.ttyname(slave)

@@ -352,7 +352,7 @@ def _resume_command(plan, machine_name, port, journal):
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
          faults, realtime):
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
-    from .winding import load_job, wind_plan
+    from .winding import dry_run_problem, load_job, wind_plan
     from .winding import resume as resuming
 
     if show_status and port is None and journal is None:
@@ -400,9 +400,14 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     except (Interrupted, MachineFailure) as exc:
         if bar is not None:
             bar.__exit__(None, None, None)
+        if port is None:
+            raise  # a dry run cannot be resumed (its simulated machine ends with the command)
         raise type(exc)(f"{exc}; resume with: {again}") from None
     if bar is not None:
         bar.__exit__(None, None, None)
+    problem = dry_run_problem(job)
+    if problem:
+        raise MachineFailure(problem)
     wound = result.steps_done - (result.first_step - 1)
     click.echo(f"wound {wound} pins (steps {result.first_step}-{result.steps_done} of {result.total}) "
                f"in {_fmt_s(result.wall_s)} ({result.pins_per_second:.1f} pins/s); "
@@ -433,24 +438,44 @@ def simulate(machine_name, pty_path, record, realtime, faults):
     """Serve the simulated machine on a pseudo-terminal until Ctrl-C."""
     from firmware_protocol.emulators.factory import build_emulator
     from firmware_protocol.machine import load_machine
-    from firmware_protocol.pty import PtyServer
+    from firmware_protocol.pty import PtyPathError, PtyServer, check_pty_path
     machine = load_machine(machine_name)
+    try:
+        check_pty_path(pty_path)            # before the record file is written
+    except PtyPathError as exc:
+        raise BadInput(f"--pty: {exc}") from None
     try:
         emulator, _world = build_emulator(machine, record=record, faults=faults)
     except ValueError as exc:
         raise BadInput(f"--faults {faults!r}: {exc}") from None
     except OSError as exc:
         raise BadInput(f"--record {record!r}: {exc.strerror or exc}") from None
+    import signal
+    import threading
+
+    def terminate(signum, frame):
+        raise SystemExit(128 + signum)      # unwinds through the finally below: the symlink goes
+
+    server = PtyServer(emulator, pty_path, realtime=realtime)
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, terminate) if in_main else None
     try:
-        server = PtyServer(emulator, pty_path, realtime=realtime).start()
-    except OSError as exc:
-        raise BadInput(f"--pty {pty_path!r}: {exc.strerror or exc}; expected a path in a writable "
-                       "folder") from None
-    click.echo(f"simulating {machine.name} on {pty_path} (-> {server.slave_name}); Ctrl-C to stop")
-    try:
-        server.serve()
+        try:
+            server.start()
+        except PtyPathError as exc:
+            raise BadInput(f"--pty: {exc}") from None
+        except OSError as exc:
+            raise BadInput(f"--pty {pty_path!r}: {exc.strerror or exc}; expected a path in a writable "
+                           "folder") from None
+        click.echo(f"simulating {machine.name} on {pty_path} (-> {server.slave_name}); Ctrl-C to stop")
+        try:
+            server.serve()
+        except PtyPathError as exc:     # a file was put at the path while the port was down
+            raise BadInput(f"--pty: {exc}") from None
     finally:
         server.close()
+        if in_main:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":
