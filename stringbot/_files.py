@@ -6,7 +6,7 @@ from pathlib import Path
 
 from .errors import BadInput
 
-__all__ = ["write_atomic", "check_output_path"]
+__all__ = ["write_atomic", "check_output_path", "check_not_same_file"]
 
 
 def check_output_path(path, *, what="output"):
@@ -24,6 +24,26 @@ def check_output_path(path, *, what="output"):
     if not parent.is_dir():
         raise BadInput(f"{what} folder {str(parent)!r} does not exist; create it first")
     return path
+
+
+def check_not_same_file(output, source, *, what="output", source_what="input"):
+    """Refuse to write ``output`` when it names the same file as ``source``.
+
+    Compared by the file itself when both exist (symlinks, hard links, ``./x`` vs ``x``), else by
+    resolved path (two outputs that do not exist yet).
+
+    Raises
+    ------
+    BadInput
+        ``"<what> path '<output>' is the <source_what> itself; expected another file"``.
+    """
+    out, src = Path(output), Path(source)
+    try:
+        same = os.path.samefile(out, src) if out.exists() and src.exists() else out.resolve() == src.resolve()
+    except OSError:
+        same = False
+    if same:
+        raise BadInput(f"{what} path {str(output)!r} is the {source_what} itself; expected another file")
 
 
 def _default_mode(path):

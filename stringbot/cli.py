@@ -112,7 +112,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
-    from ._files import check_output_path, write_atomic
+    from ._files import check_not_same_file, check_output_path, write_atomic
     from .planner.build import plan_picture
     from .planner.image import parse_crop
     from .planner.plan_file import write_plan
@@ -133,10 +133,9 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
     check_output_path(preview, what="preview")
     for out, what in ((output, "plan"), (preview, "preview")):
         for src, name in ((image, "picture"), (importance, "mask")):
-            if src and os.path.exists(out) and os.path.exists(src) and os.path.samefile(out, src):
-                raise BadInput(f"{what} path {out!r} is the {name} itself; expected another file")
-    if os.path.abspath(output) == os.path.abspath(preview):
-        raise BadInput(f"plan and preview are the same file {output!r}; expected two paths")
+            if src:
+                check_not_same_file(out, src, what=what, source_what=name)
+    check_not_same_file(preview, output, what="preview", source_what="plan")
     if lines != "auto" and lines <= 0:
         raise BadInput(f"--lines {lines}; expected a positive number or auto")
     p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
@@ -169,13 +168,14 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
 @click.option("--size", type=int, default=1001, show_default=True, help="Side of the drawing in pixels.")
 def render_cmd(plan, output, size):
     """Draw PLAN as black 1-pixel threads on white."""
-    from ._files import check_output_path, write_atomic
+    from ._files import check_not_same_file, check_output_path, write_atomic
     from .planner.plan_file import read_plan
     from .planner.render import draw, png_bytes
 
     if not 16 <= size <= 8001:
         raise BadInput(f"--size {size}; expected 16..8001 pixels")
     check_output_path(output, what="drawing")
+    check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
     write_atomic(output, png_bytes(draw(p, size=size)))
     click.echo(f"{len(p.chord_list())} chords drawn at {size} x {size} -> {output}")
@@ -282,12 +282,11 @@ def gcode_cmd(plan, machine, output):
     """Write the whole winding of PLAN on MACHINE as one G-code program."""
     import os
 
-    from ._files import check_output_path, write_atomic
+    from ._files import check_not_same_file, check_output_path, write_atomic
     from .motion import dialect_for, format_duration, gcode_job
 
     check_output_path(output, what="G-code")
-    if os.path.exists(output) and os.path.exists(plan) and os.path.samefile(output, plan):
-        raise BadInput(f"G-code path {output!r} is the plan itself; expected another file")
+    check_not_same_file(output, plan, what="G-code", source_what="plan")
     p, m = _plan_and_machine(plan, machine)
     dialect_for(m)
     text = gcode_job(p, m, plan_name=os.path.basename(plan))

@@ -213,6 +213,32 @@ def test_bad_outputs(tmp_path, picture):
     assert picture.read_bytes() == before
 
 
+def test_no_output_may_be_an_input(tmp_path, picture):
+    plan = tmp_path / "p.json"
+    code, _, err = run("plan", picture, "-o", plan, *SMALL, "--lines", "20")
+    assert code == 0, err
+    kept = plan.read_bytes()
+    (tmp_path / "alias.json").symlink_to(plan)
+    for out in (plan, tmp_path / "alias.json", tmp_path / "." / "p.json"):
+        code, _, err = run("render", plan, "-o", out)
+        one_error_line(code, err, "is the plan itself")
+        assert plan.read_bytes() == kept and read_plan(plan).pins == 60
+    code, _, err = run("gcode", plan, "--machine", "grbl-ring", "-o", tmp_path / "alias.json")
+    one_error_line(code, err, "is the plan itself")
+    assert plan.read_bytes() == kept
+    before = picture.read_bytes()
+    code, _, err = run("plan", picture, "-o", picture, "--preview", tmp_path / "x.png", *SMALL)
+    one_error_line(code, err, "is the picture itself")
+    assert picture.read_bytes() == before
+    code, _, err = run("plan", picture, "-o", plan, "--preview", tmp_path / "." / "p.json", *SMALL)
+    one_error_line(code, err, "is the plan itself")
+    assert plan.read_bytes() == kept
+    new = tmp_path / "new.json"                     # neither exists yet: compared by resolved path
+    code, _, err = run("plan", picture, "-o", new, "--preview", tmp_path / "." / "new.json", *SMALL)
+    one_error_line(code, err, "is the plan itself")
+    assert not new.exists()
+
+
 def test_mask_of_another_size(tmp_path, picture):
     Image.new("L", (50, 50), 255).save(tmp_path / "mask.png")
     code, _, err = run("plan", picture, "-o", tmp_path / "p.json", "--importance", tmp_path / "mask.png", *SMALL)
