@@ -58,7 +58,18 @@ def test_machine_failure_exits_1_with_one_line_naming_pin_step_and_resume(tmp_pa
     lines = error_lines(err)
     assert len(lines) == 1 and "Traceback" not in err
     assert "error:20" in lines[0] and "pin " in lines[0] and "step " in lines[0]
-    assert "--resume" in lines[0]
+    # a dry run's simulated machine ends with the command: no resume hint that --resume refuses
+    assert "--resume" not in lines[0]
+
+
+def test_machine_failure_on_a_port_names_the_resume_command(tmp_path, plan_path, capsys):
+    url = f"sim://?machine=grbl-ring&faults=error@20&record={tmp_path / 'rec.json'}"
+    code, out, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes", "--port", url,
+                          "--journal", str(tmp_path / "j")], capsys)
+    assert code == 1
+    lines = error_lines(err)
+    assert len(lines) == 1 and "error:20" in lines[0]
+    assert "resume with: stringbot wind" in lines[0] and "--resume" in lines[0]
 
 
 @pytest.mark.parametrize("args, words", [
@@ -83,8 +94,9 @@ def test_missing_plan_exits_2(tmp_path, capsys):
     assert code == 2 and "does not exist" in err
 
 
-def test_ctrl_c_exits_130_with_the_resume_command(tmp_path, plan_path):
-    """A real SIGINT to a realtime dry run: feed hold, one line, exit 130."""
+def test_ctrl_c_on_a_dry_run_exits_130_without_a_resume_hint(tmp_path, plan_path):
+    """A real SIGINT to a realtime dry run: feed hold, one line, exit 130; no resume hint (a dry
+    run cannot be resumed: --resume would refuse it)."""
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     cmd = [sys.executable, "-c", "import sys; from stringbot.cli import main; main(sys.argv[1:])",
            "wind", str(plan_path), "--machine", "grbl-ring", "--yes", "--realtime"]
@@ -95,7 +107,7 @@ def test_ctrl_c_exits_130_with_the_resume_command(tmp_path, plan_path):
     assert proc.returncode == 130, err
     lines = error_lines(err)
     assert len(lines) == 1 and "Traceback" not in err
-    assert "interrupted at pin" in lines[0] and "--resume" in lines[0]
+    assert "interrupted at pin" in lines[0] and "--resume" not in lines[0]
 
 
 class FakeDevice:

@@ -65,7 +65,8 @@ append-only journal, :mod:`.session` a whole ``stringbot wind`` run and
 
 from .journal import Journal, JournalState, journal_path_for, read_journal
 from .loop import Progress, Winder, WindResult, WindState, step_seconds
-from .session import Job, load_job, wind_plan
+from .session import Job, dry_run_problem, load_job, wind_plan
 
 __all__ = ["Winder", "WindState", "WindResult", "Progress", "step_seconds", "Journal",
-           "JournalState", "read_journal", "journal_path_for", "Job", "load_job", "wind_plan"]
+           "JournalState", "read_journal", "journal_path_for", "Job", "load_job", "wind_plan",
+           "dry_run_problem"]

@@ -17,7 +17,7 @@ from ..planner import read_plan
 from .journal import Journal, journal_path_for, read_journal
 from .loop import Winder
 
-__all__ = ["wind_plan", "Job", "load_job"]
+__all__ = ["wind_plan", "Job", "load_job", "dry_run_problem"]
 
 log = logging.getLogger(__name__)
 
@@ -36,8 +36,11 @@ class Job:
             if not str(port).startswith("sim://"):
                 raise BadInput("--record, --faults and --realtime are for the simulated machine; "
                                "leave out --port (or give a sim:// URL) to use them")
-        self.url = port if port is not None else sim_url(machine.name, record=record, faults=faults,
-                                                          realtime=realtime)
+        # the simulator loads the very machine file given (a user's copy may keep a bundled
+        # machine's name but not its geometry), so the dry run checks that file
+        self.record = Path(record) if (record and port is None) else None
+        self.url = port if port is not None else sim_url(_machine_ref(machine), record=record,
+                                                          faults=faults, realtime=realtime)
         self.journal_path = Path(journal) if journal else journal_path_for(plan_path,
                                                                            dry_run=self.dry_run)
 
@@ -59,6 +62,15 @@ class Job:
         if h.get("steps") != len(self.steps):
             raise BadInput(f"journal {str(state.path)!r} has {h.get('steps')} steps but the plan "
                            f"has {len(self.steps)}; is it this plan's journal?")
+
+
+def _machine_ref(machine):
+    """What the simulator's ``machine=`` option gets: the machine file's absolute path (its name
+    only for a machine that was not read from a file)."""
+    path = Path(machine.path) if machine.path else None
+    if path is not None and path.is_file():
+        return str(path.resolve())
+    return machine.name
 
 
 def load_job(plan_path, machine_name, **kw):
@@ -106,3 +118,34 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None):
         if link is not None:
             link.close()
         journal.close()
+
+
+def dry_run_problem(job):
+    """After a finished dry run with ``--record``: what the simulated world saw that the plan did
+    not ask for (collisions, or wraps that differ from the plan's sequence), as one line; None
+    when the world wound the plan exactly (or there is no record to check)."""
+    if not job.dry_run or job.record is None:
+        return None
+    import json
+    try:
+        rec = json.loads(job.record.read_text(encoding="utf-8"))
+        wraps = [int(w["pin"]) for w in rec["wraps"]]
+        collisions = list(rec["collisions"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        return f"the dry run's record {str(job.record)!r} could not be read back ({exc}); " \
+               "the winding is unchecked"
+    seq = list(job.plan.sequence)
+    problems = []
+    if collisions:
+        first = collisions[0]
+        problems.append(f"{len(collisions)} collision(s) of the head with pins (first: "
+                        f"{first.get('reason', '?')} at ring {first.get('ring_deg', '?')} deg)")
+    if wraps != seq:
+        at = next((i for i, (a, b) in enumerate(zip(wraps, seq)) if a != b), min(len(wraps), len(seq)))
+        problems.append(f"the world wrapped {len(wraps)} pins for the plan's {len(seq)}, first "
+                        f"differing at step {at + 1}")
+    if not problems:
+        return None
+    return (f"dry run on machine file {job.machine.path or job.machine.name!r} is not the plan: "
+            + "; ".join(problems) + f" (record {str(job.record)!r}); check the machine file "
+            "(ring.pin0_angle_deg, head.in_mm/out_mm, ring geometry)")
