@@ -96,29 +96,101 @@ def read_journal(path):
     if records[0].get("version") != VERSION:
         raise BadInput(f"journal {str(path)!r} is version {records[0].get('version')!r}; "
                        f"expected {VERSION}")
+    steps = records[0].get("steps")
+    if not _is_int(steps) or steps < 1:
+        raise BadInput(f"journal {str(path)!r} line 1 is damaged: steps is {steps!r}; expected the "
+                       "plan's step count (a whole number, at least 1)")
     state = JournalState(path=path, header=records[0], torn=torn)
-    for rec in records[1:]:
+    for n, rec in enumerate(records[1:], 2):
+        _check_record(path, n, rec, steps)
         kind = rec.get("kind")
         if kind == "done":
-            state.done.append(int(rec["step"]))
-            state.next_step = int(rec["step"]) + 1
+            state.done.append(rec["step"])
+            state.next_step = rec["step"] + 1
             state.next_move = 0
         elif kind == "move":
-            if int(rec["step"]) == state.next_step:
-                state.next_move = int(rec["move"]) + 1
+            if rec["step"] == state.next_step:
+                state.next_move = rec["move"] + 1
         elif kind == "stop":
             state.stops.append(rec)
         elif kind == "resume":
             state.resumes.append(rec)
             # --from-step moves the next step: steps from there on are to be wound again
-            start = int(rec.get("from_step", state.next_step))
+            start = rec.get("from_step", state.next_step)
             state.done = [s for s in state.done if s < start]
             state.next_step = start
-            state.next_move = int(rec.get("from_move", 0))
+            state.next_move = rec.get("from_move", 0)
         elif kind == "finished":
             state.finished = True
         state.last_time = rec.get("t", state.last_time)
     return state
+
+
+def _is_int(v):
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+# per kind: field -> (required, check, expected form); steps are indices 0..steps-1
+_FIELDS = {
+    "done": {"step": (True, "step", "a step index 0..{last}"),
+             "pin": (True, "index", "a pin number (a whole number >= 0)")},
+    "move": {"step": (True, "step", "a step index 0..{last}"),
+             "move": (True, "index", "a move index (a whole number >= 0)")},
+    "resume": {"from_step": (False, "step_or_end", "a step index 0..{steps}"),
+               "from_move": (False, "index", "a move index (a whole number >= 0)")},
+    "stop": {"reason": (False, "str", "a text"),
+             "error": (False, "str_or_null", "a text"),
+             "next_step": (False, "step_or_end", "a step index 0..{steps}"),
+             "at": (False, "at", 'null or {{"step_index": 0..{steps}, "move": a whole number >= 0}}'),
+             "position": (False, "position", "null or a list of axis positions (numbers)")},
+}
+
+
+def _valid(check, v, steps):
+    if check == "step":
+        return _is_int(v) and 0 <= v < steps
+    if check == "step_or_end":
+        return _is_int(v) and 0 <= v <= steps
+    if check == "index":
+        return _is_int(v) and v >= 0
+    if check == "str":
+        return isinstance(v, str)
+    if check == "str_or_null":
+        return v is None or isinstance(v, str)
+    if check == "at":
+        return v is None or (isinstance(v, dict) and _valid("step_or_end", v.get("step_index"), steps)
+                             and _valid("index", v.get("move"), steps))
+    if check == "position":
+        # the firmware's axes in its order (GRBL: x, y, z) or a servo link's (ring_deg, head_mm)
+        return v is None or (isinstance(v, list) and all(_is_number(x) for x in v))
+    raise AssertionError(check)
+
+
+def _check_record(path, n, rec, steps):
+    """Refuse record ``n`` (line number) whose fields are missing or of the wrong form."""
+    def damaged(what, expected):
+        raise BadInput(f"journal {str(path)!r} line {n} is damaged: {what}; expected {expected}")
+
+    kind = rec.get("kind")
+    if not isinstance(kind, str):
+        damaged(f"kind is {kind!r}", "a record kind (done, move, stop, resume, finished)")
+    if kind == "start":
+        damaged("a second header", "one header, on line 1")
+    t = rec.get("t")
+    if t is not None and not _is_number(t):
+        damaged(f"{kind} record's t is {t!r}", "a time in seconds (a number)")
+    for name, (required, check, expected) in _FIELDS.get(kind, {}).items():
+        if name not in rec:
+            if required:
+                damaged(f"{kind} record without {name}", f"{name} as {expected.format(last=steps - 1, steps=steps)}")
+            continue
+        if not _valid(check, rec[name], steps):
+            damaged(f"{kind} record's {name} is {rec[name]!r}",
+                    expected.format(last=steps - 1, steps=steps))
 
 
 class Journal:
