@@ -98,14 +98,15 @@ def lines_for(step):
 
 
 def test_character_counting_fills_but_never_exceeds_the_buffer():
-    # 127 usable bytes: lines of 20 bytes -> 6 in flight (120), the 7th waits for an ok
+    # 127 usable bytes, 3 of them kept for the $G probe: lines of 20 bytes -> 6 in flight
+    # (120), the 7th waits for an ok
     body = [f"G1 X{i:04d}.000 F99999" for i in range(8)]      # 19 chars + \n = 20
     assert all(len(b) == 19 for b in body)
     table = [(f"{b}\n".encode(), b"") for b in body[:6]]
     table += [(None, b"ok\r\n"), (f"{body[6]}\n".encode(), b""),
               (None, b"ok\r\n"), (f"{body[7]}\n".encode(), b""),
-              (b"G4 P0\n", b"")]                        # 120 + 6 bytes still fit
-    table += [(None, b"ok\r\n")] * 7
+              (None, b"ok\r\n"), (b"G4 P0\n", b"")]    # 120 + 6 > 124: the sync waits for an ok
+    table += [(None, b"ok\r\n")] * 6
     lk, port = ready(table)
     done = []
     lk.execute([FakeStep(0, 5, body)], lines_for, done.append)
@@ -167,15 +168,109 @@ def test_garbage_mid_job_is_a_failure_and_holds():
     port.assert_done()
 
 
-def test_silence_then_lost_ok_is_recovered_from_idle_status():
-    idle = b"<Idle|MPos:1.000,0.000,0.000|Bf:15,127|FS:0,0>\r\n"
+IDLE = b"<Idle|MPos:1.000,0.000,0.000|Bf:15,127|FS:0,0>\r\n"
+GC = b"[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]\r\n"
+
+
+def test_silence_then_lost_ok_is_recovered_by_the_g_probe():
+    # idle twice with the sync unanswered: $G is asked; its [GC:...] accounts for the lost ok
     table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"ok\r\n"),    # the sync's ok is lost
-             (b"?", idle), (b"?", idle)]
+             (b"?", IDLE), (b"?", IDLE), (b"$G\n", GC + b"ok\r\n"),
+             (b"G4 P0\n", b"ok\r\n")]                 # finish: the probe's ok, then its own
     lk, port = ready(table)
     done = []
     lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for, done.append)
     assert len(done) == 1
+    lk.finish()
+    assert lk.unanswered() == []
     port.assert_done()
+
+
+def test_a_lost_ok_of_the_probe_itself_is_survived():
+    # streaming: the probe's ok is lost; the next ok is taken for it, and a new probe accounts
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"ok\r\n"),
+             (b"?", IDLE), (b"?", IDLE), (b"$G\n", GC),                  # the probe's ok is lost too
+             (b"G4 P0\n", b"ok\r\n"),
+             (b"?", IDLE), (b"?", IDLE), (b"$G\n", GC + b"ok\r\n")]
+    lk, port = ready(table)
+    done = []
+    lk.execute([FakeStep(0, 5, ["G0 X1"])], lines_for, done.append)
+    assert len(done) == 1
+    lk.finish()
+    lk._poll()                                  # the second probe's ok, already waiting
+    assert lk.unanswered() == []
+    port.assert_done()
+
+
+def test_a_probe_whose_ok_is_lost_last_is_dropped():
+    table = [(b"G0 X1\n", b""), (b"G4 P0\n", b""), (None, b"ok\r\n"),
+             (b"?", IDLE), (b"?", IDLE), (b"$G\n", GC),                  # the probe's ok is lost too
+             (b"?", IDLE), (b"?", IDLE)]
+    lk, port = ready(table)
+    lk.finish(["G0 X1"])
+    assert len(lk.unanswered()) == 1                # the probe: its [GC:...] came, its ok did not
+    lk._wait_answers(0, 5.0)                        # idle twice more: the probe is done
+    assert lk.unanswered() == [] and lk._inflight_bytes == 0
+    port.assert_done()
+
+
+def test_idle_during_a_long_dwell_credits_nothing():
+    # GRBL reports Idle during G4: the dwell outlasts the idle window several times over.
+    # Nothing may be counted done until the answers come; the probe waits behind the dwell.
+    s0 = FakeStep(0, 5, ["G1 X0010.000 F99999", "G4 P3.0"])
+    s1 = FakeStep(1, 9, ["G1 X0020.000 F99999", "G4 P3.0"])
+    events = []
+    table = [(b"G1 X0010.000 F99999\n", b""), (b"G4 P3.0\n", b""), (b"G4 P0\n", b""),
+             (b"G1 X0020.000 F99999\n", b""), (b"G4 P3.0\n", b""), (b"G4 P0\n", b""),
+             (None, b"ok\r\n"),                                  # the move is queued; dwell starts
+             (b"?", IDLE), (b"?", IDLE),
+             (b"$G\n", b""),                                      # behind the dwell: no answer yet
+             (b"?", IDLE), (b"?", IDLE),                           # still dwelling: no second probe
+             (b"?", IDLE), (b"?", IDLE),
+             (None, b"ok\r\nok\r\n"),                            # dwell, then sync of step 1
+             (None, b"ok\r\n"),                                  # step 2's move
+             (b"?", IDLE), (b"?", IDLE),                           # step 2's dwell
+             (None, b"ok\r\nok\r\n" + GC + b"ok\r\n")]
+    lk, port = ready(table)
+    lk.execute([s0, s1], lines_for, lambda st: events.append((st.index, len(lk.unanswered()))))
+    # step 1 only when its sync was answered (then 4 lines were left: step 2's 3 and the
+    # probe), step 2 when its own sync was (the probe's ok may still be unread)
+    assert events[0] == (0, 4) and events[1][0] == 1
+    lk._poll()
+    assert lk.unanswered() == []
+    assert lk.max_inflight_bytes <= lk.rx_size
+    port.assert_done()
+
+
+def test_dwell_with_idle_replies_never_oversends_the_buffer():
+    # steps with a dwell longer than the idle window, enough to fill the buffer: every line
+    # waits for a real answer, and the count (probe included) never passes the buffer
+    steps = [FakeStep(i, i, [f"G1 X{i:04d}.000 F99999", "G4 P2.5"]) for i in range(4)]
+    a = [f"G1 X{i:04d}.000 F99999\n".encode() for i in range(4)]
+    d, s = b"G4 P2.5\n", b"G4 P0\n"
+    assert len(a[0]) + len(d) + len(s) == 34 and lk_room(127) == 124
+    table = [(x, b"") for i in range(3) for x in (a[i], d, s)] + [(a[3], b"")]   # 122 bytes
+    table += [(None, b"ok\r\n"),                               # step 1's move: 102 bytes
+              (d, b""), (s, b""),                              # 110, then 116: both fit
+              (b"?", IDLE), (b"?", IDLE),                      # step 1's dwell runs
+              (b"$G\n", b""),                                  # 119: the probe waits behind it
+              (b"?", IDLE), (b"?", IDLE)]                      # still dwelling: nothing credited
+    for i in range(3):                                         # dwell + sync, next move + dwell
+        table += [(None, b"ok\r\nok\r\n"), (None, b"ok\r\n"), (b"?", IDLE), (b"?", IDLE)]
+    table += [(None, b"ok\r\nok\r\n" + GC + b"ok\r\n")]
+    lk, port = ready(table, lookahead=3)
+    events = []
+    lk.execute(steps, lines_for, lambda st: events.append((st.index, len(lk.unanswered()))))
+    # each step only once its own sync is answered: 10, 7, 4 lines (the probe included) left
+    assert events[:3] == [(0, 10), (1, 7), (2, 4)] and events[3][0] == 3
+    lk._poll()
+    assert lk.unanswered() == []
+    assert lk.max_inflight_bytes == 122
+    port.assert_done()
+
+
+def lk_room(rx):
+    return rx - len(b"$G\n")
 
 
 def test_silent_machine_times_out_with_a_clear_line():

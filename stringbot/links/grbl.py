@@ -11,6 +11,14 @@ A step counts as executed only when the answer to the ``G4 P0`` that follows
 its lines arrives: GRBL answers a dwell only once every earlier motion has
 finished.  Lines of the next step(s) may already be in the receive buffer
 (``lookahead``), so the machine never waits for the host between steps.
+
+An ``ok`` is only ever counted for the oldest unanswered line.  A lost ``ok``
+is never inferred from an ``Idle`` status alone (GRBL reports ``Idle`` during
+a ``G4`` dwell, with lines still waiting behind it): after a silence with the
+machine idle, the link sends ``$G`` (the probe); GRBL reads it only once every
+earlier line is done, and answers ``[GC:...]`` then ``ok``.  That ``[GC:...]``
+accounts for every line sent before the probe.  The probe's few bytes are kept
+free in the receive buffer, so it always fits.
 """
 
 import logging
@@ -30,6 +38,9 @@ _OPT = re.compile(r"^\[OPT:([^,\]]*),(\d+),(\d+)")
 _VER = re.compile(r"^\[VER:([^:\]]*)")
 DEFAULT_RX = {"grbl": 128, "grblhal": 1024}
 _RESET = b"\x18"
+_PROBE = "$G"                          # answered [GC:...] + ok, once every earlier line is done
+_PROBE_BYTES = len(_PROBE) + 1
+_GC = re.compile(r"^\[(GC:|G\d)")      # $G's answer (GRBL 1.1 / 0.9)
 
 
 def parse_status(line):
@@ -79,6 +90,8 @@ class GrblLink(LineLink):
         self.status_log = None        # list -> every status report is appended as (time, Status)
         self.status_interval = None   # seconds: ask ``?`` this often while waiting (measurements)
         self._last_query = 0.0
+        self._probe = None            # the Where of the $G probe in flight, if any
+        self._probe_seen = False      # its [GC:...] arrived: every line before it is done
 
     # ---- identification --------------------------------------------------------------
     def identify(self):
@@ -243,11 +256,11 @@ class GrblLink(LineLink):
         data = b"".join(t.encode("ascii") + b"\n" for t in texts)
         self.state = LinkState.STREAMING
         self.where = where
-        if len(data) > self.rx_size:
+        if len(data) > self._room():
             for t in texts:
                 self._send(t, where)
         else:
-            while self._inflight_bytes + len(data) > self.rx_size:
+            while self._inflight_bytes + len(data) > self._room():
                 self._wait_answers(len(self._inflight) - 1, self.motion_timeout)
             log.debug("-> %s", " | ".join(texts))
             self.write(data)
@@ -281,10 +294,18 @@ class GrblLink(LineLink):
 
     def _send(self, text, where):
         data = text.encode("ascii") + b"\n"
-        if len(data) > self.rx_size:
+        if len(data) > self._room():
             raise self.fail(f"line longer than the firmware's receive buffer: {text[:40]!r}", where)
-        while self._inflight_bytes + len(data) > self.rx_size:
+        while self._inflight_bytes + len(data) > self._room():
             self._wait_answers(len(self._inflight) - 1, self.motion_timeout)
+        self._put(text, where)
+
+    def _room(self):
+        """Bytes lines may fill: the receive buffer less what the probe needs."""
+        return self.rx_size - _PROBE_BYTES
+
+    def _put(self, text, where):
+        data = text.encode("ascii") + b"\n"
         log.debug("-> %s", text)
         self.write(data)
         self._inflight.append((len(data), where))
@@ -310,12 +331,15 @@ class GrblLink(LineLink):
     def _wait_answers(self, at_most, timeout):
         """Read until no more than ``at_most`` lines are unanswered.
 
-        While waiting on motion, silence is met with a status query: a machine that
-        reports Idle twice while lines are unanswered has lost an ``ok`` (they are
-        then counted as answered); one that does not answer at all has gone away.
+        While waiting on motion, silence is met with a status query.  A machine that
+        does not answer it has gone away.  One that reports Idle twice may have lost
+        an ``ok``, or may be in a dwell (GRBL reports Idle during ``G4``): the link then
+        sends the ``$G`` probe, whose ``[GC:...]`` proves every earlier line done.
+        Nothing is ever counted as answered on the strength of a status report.
         """
         deadline = time.monotonic() + timeout
         idle_polls = 0
+        mine = []                             # probes sent here: each is one more line to wait for
         while len(self._inflight) > at_most:
             if self.status_interval:
                 now = time.monotonic()
@@ -339,16 +363,54 @@ class GrblLink(LineLink):
             if st.state == "Idle" and self._rx.find(b"\n") < 0:
                 idle_polls += 1
                 if idle_polls >= 2:
-                    log.warning("the machine is idle with %d lines unanswered: answers were lost",
-                                len(self._inflight))
-                    while len(self._inflight) > at_most:
-                        self._answered()
+                    idle_polls = 0
+                    before = self._probe
+                    dropped = self._send_probe()
+                    if dropped is not None and any(dropped is p for p in mine):
+                        at_most -= 1
+                    if self._probe is not None and self._probe is not before:
+                        mine.append(self._probe)
+                        at_most += 1
             else:
                 idle_polls = 0
+
+    def _send_probe(self):
+        """Send ``$G`` behind the unanswered lines, unless one is already on its way.
+
+        A probe whose ``[GC:...]`` came but whose ``ok`` did not is done (its ``ok``
+        was lost): it is dropped first.  Returns the probe dropped, if any.
+        """
+        dropped = None
+        if self._probe is not None:
+            if not (self._probe_seen and self._inflight and self._inflight[0][1] is self._probe):
+                return None                   # still behind a dwell or a long line
+            log.warning("the answer to the $G probe was lost")
+            dropped = self._answered()
+        if not self._inflight:
+            return dropped
+        if self._inflight_bytes + _PROBE_BYTES > self.rx_size:  # pragma: no cover - room is kept
+            return dropped
+        log.info("the machine is idle with %d lines unanswered: asking $G to account for them",
+                 len(self._inflight))
+        self._probe, self._probe_seen = Where(), False
+        self._put(_PROBE, self._probe)
+        return dropped
+
+    def _probe_answered(self):
+        """``[GC:...]`` of the probe: every line sent before it is done, answered or not."""
+        lost = 0
+        while self._inflight and self._inflight[0][1] is not self._probe:
+            self._answered()
+            lost += 1
+        self._probe_seen = True
+        if lost:
+            log.warning("%d answers were lost; the $G probe accounts for them", lost)
 
     def _answered(self, ok=True):
         nbytes, where = self._inflight.popleft()
         self._inflight_bytes -= nbytes
+        if where is self._probe:
+            self._probe, self._probe_seen = None, False
         if ok and where.sync and where.item is not None:
             self.executed.append(where.item)
         return where
@@ -383,6 +445,8 @@ class GrblLink(LineLink):
                 return
             raise self.fail("the firmware reset itself mid-job (it printed its banner again); "
                             "its position may be lost")
+        elif self._probe is not None and not self._probe_seen and _GC.match(line):
+            self._probe_answered()
         elif line.startswith(("[", "$", ">", "Grbl")):
             log.info("machine says: %s", line)
         else:
@@ -424,6 +488,8 @@ class GrblLink(LineLink):
                 if line.startswith("ok"):
                     if self._inflight:
                         self._answered()
+                elif self._probe is not None and not self._probe_seen and _GC.match(line):
+                    self._probe_answered()
                 elif line.startswith("<"):
                     self._status(line)
         except Exception:
@@ -450,6 +516,7 @@ class GrblLink(LineLink):
         """Start counting afresh (lines another session sent are not ours to count)."""
         self._inflight.clear()
         self._inflight_bytes = 0
+        self._probe, self._probe_seen = None, False
 
     def unanswered(self):
         """Lines sent and not yet answered (for tests and for resume)."""
