@@ -213,6 +213,8 @@ class Journal:
             raise BadInput(f"journal path {str(path)!r} is a folder; expected a file path")
         if not path.parent.is_dir():
             raise BadInput(f"journal folder {str(path.parent)!r} does not exist; create it first")
+        if path.exists():
+            _check_overwritable(path, plan_path)
         fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         j = cls(path, fd, durable)
         j.append({"kind": "start", "format": FORMAT, "version": VERSION, "plan": str(plan_path),
@@ -256,6 +258,25 @@ class Journal:
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
+
+
+_HEADER_START = b'{"kind":"start","format":"' + FORMAT.encode() + b'"'
+
+
+def _check_overwritable(path, plan_path):
+    """A new journal replaces only an old journal (or an empty file): never the plan, a picture
+    or anything else that happens to be at ``path``."""
+    try:
+        if plan_path is not None and Path(plan_path).exists() and path.samefile(plan_path):
+            raise BadInput(f"journal {str(path)!r} is the plan itself; give the journal its own file")
+        with open(path, "rb") as f:
+            head = f.read(len(_HEADER_START))
+    except OSError as exc:
+        raise BadInput(f"journal {str(path)!r} cannot be read ({exc.strerror or exc}); "
+                       "expected a journal file to replace") from None
+    if head and not head.startswith(_HEADER_START):
+        raise BadInput(f"journal {str(path)!r} exists and is not a stringbot journal; not "
+                       "overwriting it: give --journal a new file (or remove that one)")
 
 
 def _fsync_dir(folder):

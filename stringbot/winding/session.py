@@ -39,10 +39,18 @@ class Job:
         # the simulator loads the very machine file given (a user's copy may keep a bundled
         # machine's name but not its geometry), so the dry run checks that file
         self.record = Path(record) if (record and port is None) else None
+        if self.record is not None:
+            _check_record_path(self.record, self.plan_path)
         self.url = port if port is not None else sim_url(_machine_ref(machine), record=record,
                                                           faults=faults, realtime=realtime)
         self.journal_path = Path(journal) if journal else journal_path_for(plan_path,
                                                                            dry_run=self.dry_run)
+        if _same_file(self.journal_path, self.plan_path):
+            raise BadInput(f"--journal {str(self.journal_path)!r} is the plan itself; give the "
+                           "journal its own file (default: beside the plan, PLAN.journal)")
+        if self.record is not None and _same_file(self.record, self.journal_path):
+            raise BadInput(f"--record {str(self.record)!r} is the journal's file too; give them "
+                           "different files")
 
     @property
     def fresh_world(self):
@@ -62,6 +70,40 @@ class Job:
         if h.get("steps") != len(self.steps):
             raise BadInput(f"journal {str(state.path)!r} has {h.get('steps')} steps but the plan "
                            f"has {len(self.steps)}; is it this plan's journal?")
+
+
+def _same_file(a, b):
+    a, b = Path(a), Path(b)
+    try:
+        if a.exists() and b.exists():
+            return a.samefile(b)
+        return a.resolve() == b.resolve()
+    except OSError:
+        return False
+
+
+def _check_record_path(record, plan_path):
+    """Refuse a ``--record`` path that would overwrite something that is not a world record
+    (the plan, or any other file), or that is in a folder that does not exist."""
+    if _same_file(record, plan_path):
+        raise BadInput(f"--record {str(record)!r} is the plan itself; give the world's record its "
+                       "own file (e.g. record.json)")
+    if record.is_dir():
+        raise BadInput(f"--record {str(record)!r} is a folder; expected a file path")
+    if not record.parent.is_dir():
+        raise BadInput(f"record folder {str(record.parent)!r} does not exist; create it first "
+                       f"(for --record {str(record)!r})")
+    if record.exists() and record.stat().st_size > 0:
+        import json
+        try:
+            doc = json.loads(record.read_bytes())
+            ours = isinstance(doc, dict) and isinstance(doc.get("wraps"), list) \
+                and "collisions" in doc
+        except (OSError, ValueError):
+            ours = False
+        if not ours:
+            raise BadInput(f"--record {str(record)!r} exists and is not a simulated world's record; "
+                           "not overwriting it: give a new file (or remove that one)")
 
 
 def _machine_ref(machine):
