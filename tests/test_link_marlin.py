@@ -56,12 +56,54 @@ def test_resend_after_a_checksum_error():
 
 
 def test_lost_ok_is_found_by_sending_the_line_again():
-    table = [(w(1, "G0 X1"), b""),    # its ok is lost
-             (w(1, "G0 X1"), b"Error:Line Number is not Last Line Number+1, Last Line: 1\r\n"
-                             b"Resend: 2\r\nok\r\n"),
+    # a line answered at once (not a wait on motion): silence means a lost ok
+    table = [(w(1, "G92 A0"), b""),    # its ok is lost
+             (w(1, "G92 A0"), b"Error:Line Number is not Last Line Number+1, Last Line: 1\r\n"
+                              b"Resend: 2\r\nok\r\n"),
              (w(2, "M400"), b"ok\r\n")]
     lk, port = link(table)
-    lk.execute([FakeStep(0, 3, ["G0 X1"])], lambda s: s.lines)
+    lk.execute([FakeStep(0, 3, ["G92 A0"])], lambda s: s.lines)
+    port.assert_done()
+
+
+POS = b"X:0.00 Y:19.00 Z:0.00 A:30.00 Count X:0 Y:0 Z:0 A:0\r\n"
+
+
+def test_a_long_silent_m400_is_waited_for_not_sent_again():
+    # busy keepalive off (M113 S0): M400 says nothing for many response timeouts, then ok.
+    # The link never sends it twice; M114 goes behind it once, and is answered after it.
+    table = [(w(1, "G0 X1"), b"ok\r\n"), (w(2, "M400"), b""),
+             (w(3, "M114"), b""),                               # no answer while moving
+             (None, b""), (None, b""), (None, b""), (None, b""),  # reads that find nothing
+             (None, b"ok\r\n" + POS + b"ok\r\n"),                # M400 done, then M114
+             (w(4, "G0 X2"), b"ok\r\n"), (w(5, "M400"), b"ok\r\n")]
+    lk, port = link(table, response_timeout=0.1, motion_timeout=30.0)
+    done = []
+    lk.execute([FakeStep(0, 3, ["G0 X1"]), FakeStep(1, 4, ["G0 X2"])], lambda s: s.lines,
+               lambda s: done.append((s.index, len(port.table))))
+    # step 1 only after M400's ok; step 2 after its own M400's, not the M114's
+    assert done == [(0, 2), (1, 0)]
+    assert lk.resends == 0 and port.written.count(w(2, "M400")) == 1
+    port.assert_done()
+
+
+def test_a_lost_m400_ok_is_found_by_the_m114_behind_it():
+    table = [(w(1, "G0 X1"), b"ok\r\n"), (w(2, "M400"), b""),   # its ok is lost
+             (w(3, "M114"), POS + b"ok\r\n"),
+             (w(4, "G0 X2"), b"ok\r\n"), (w(5, "M400"), b"ok\r\n")]
+    lk, port = link(table)
+    done = []
+    lk.execute([FakeStep(0, 3, ["G0 X1"]), FakeStep(1, 4, ["G0 X2"])], lambda s: s.lines,
+               lambda s: done.append(s.index))
+    assert done == [0, 1] and lk.last_position["A"] == 30.0
+    port.assert_done()
+
+
+def test_a_silent_m400_fails_only_at_the_motion_timeout():
+    table = [(w(1, "G0 X1"), b"ok\r\n"), (w(2, "M400"), b""), (w(3, "M114"), b"")]
+    lk, port = link(table, response_timeout=0.05, motion_timeout=0.5)
+    with pytest.raises(MachineFailure, match=r"did not answer within 0 s.*pin 7, step 5"):
+        lk.execute([FakeStep(4, 7, ["G0 X1"])], lambda s: s.lines)
     port.assert_done()
 
 
@@ -88,8 +130,8 @@ def test_failures_name_pin_and_step(reply, words):
 
 
 def test_silence_is_a_clear_failure():
-    table = [(w(1, "G0 X1"), b""), (w(1, "G0 X1"), b""), (w(1, "G0 X1"), b"")]
+    table = [(w(1, "G92 A0"), b""), (w(1, "G92 A0"), b""), (w(1, "G92 A0"), b"")]
     lk, port = link(table)
     with pytest.raises(MachineFailure, match="stopped answering.*pin 7, step 5"):
-        lk.execute([FakeStep(4, 7, ["G0 X1"])], lambda s: s.lines)
+        lk.execute([FakeStep(4, 7, ["G92 A0"])], lambda s: s.lines)
     port.assert_done()

@@ -7,6 +7,14 @@ the link sends line ``n`` again (and any after it).  ``echo:busy: processing``
 while a long command runs keeps the wait alive.  A step counts as executed
 when the ``ok`` of the ``M400`` after its lines arrives (``M400`` waits for
 every move to finish).
+
+Silence after a line that waits on motion (``M400``, ``G4``, ``G28``, moves) is
+normal when the busy keepalive is off (``M113 S0``): it is allowed up to
+``motion_timeout``, and such a line is never sent twice (a duplicate would draw
+a ``Resend:`` and shift which ``ok`` answers which line).  To find a lost
+``ok`` meanwhile, the link sends the next numbered line early as ``M114``:
+Marlin runs it only after the waiting line, so its ``X:...`` report proves
+that line done.
 """
 
 import logging
@@ -22,6 +30,13 @@ log = logging.getLogger(__name__)
 
 _RESEND = re.compile(r"^(?:Resend|rs)\s*:?\s*N?(\d+)", re.IGNORECASE)
 _POS = re.compile(r"([XYZABCE]):\s*(-?\d+(?:\.\d+)?)")
+_WAITS = re.compile(r"^(M400|G0*4|G0*28|G0*[0-3])(?!\d)", re.IGNORECASE)
+_PROBE = "M114"
+
+
+def waits_on_motion(text):
+    """True for a line Marlin answers only once motion (or a dwell) allows."""
+    return bool(_WAITS.match(text.strip()))
 
 
 def numbered(n, text):
@@ -168,7 +183,7 @@ class MarlinLink(LineLink):
         self._history[n] = text
         self._transmit(n, text, where)
         self.line_number = n + 1
-        answered = self._await(n, where, timeout)
+        answered = self._await(n, where, timeout, motion=waits_on_motion(text))
         self._history.pop(n - 8, None)
         if not answered and text == self.sync_line:
             # an M400 known only to have arrived may still be waiting on motion: ask again
@@ -180,27 +195,39 @@ class MarlinLink(LineLink):
         self.write(wire.encode("ascii") + b"\n")
         self.lines_sent += 1
 
-    def _await(self, n, where, timeout):
+    def _await(self, n, where, timeout, motion=False):
         """Wait for line ``n``'s ``ok``, answering resend requests and keepalives.
 
         Marlin follows every ``Resend: k`` with an ``ok`` that answers nothing;
-        ``self._swallow`` counts those still to come.
+        ``self._swallow`` counts those still to come.  ``motion``: line ``n`` may
+        rightly take up to ``timeout`` without a word (see the module's notes).
         """
-        self._awaiting = (n, where)
-        answered = self._await_inner(n, where, timeout)
+        self._awaiting = (n, where, motion)
+        answered = self._await_inner(n, where, timeout, motion)
         self._awaiting = None
         return answered
 
-    def _await_inner(self, n, where, timeout):
+    def _await_inner(self, n, where, timeout, motion=False):
         deadline = time.monotonic() + timeout
         silence = time.monotonic() + self.response_timeout
         probes = 0
+        probe, reported = None, False  # the M114 sent early behind line n; its X: report came
         while True:
             line = self.readline(max(0.0, min(deadline, silence) - time.monotonic()))
             now = time.monotonic()
             if line is None:
                 if now >= deadline:
                     raise self.fail(f"the machine did not answer within {timeout:.0f} s", where)
+                if motion:
+                    # still moving, or line n's ok was lost: never send it again; ask M114
+                    # behind it, once (its answer comes when line n is done)
+                    if probe is None:
+                        probe = self.line_number
+                        self._history[probe] = _PROBE
+                        self._transmit(probe, _PROBE, where)
+                        self.line_number = probe + 1
+                    silence = now + self.response_timeout
+                    continue
                 if probes >= 2:
                     raise self.fail("the machine stopped answering", where)
                 # silence: the answer may be lost.  Send the line again under its number:
@@ -215,12 +242,20 @@ class MarlinLink(LineLink):
                 if self._swallow:
                     self._swallow -= 1
                     continue
+                if probe is not None:
+                    if reported:
+                        log.warning("the answer to line %d was lost; M114 behind it came back", n)
+                    else:
+                        self._swallow += 1      # line n's ok: the probe's comes later
                 return True
             m = _RESEND.match(line)
             if m:
                 want = int(m.group(1))
                 self.resends += 1
                 self._swallow += 1
+                if probe is not None and want == probe:
+                    self._transmit(probe, _PROBE, where)
+                    continue
                 if want == n + 1:
                     return False       # it had line n (its answer was lost): received, maybe not done
                 if want != n or self.resends > self.max_resends * 1000:
@@ -245,6 +280,8 @@ class MarlinLink(LineLink):
                                 "its position may be lost", where)
             if line.startswith("X:") and _POS.search(line):
                 self.last_position = {k: float(v) for k, v in _POS.findall(line.split("Count")[0])}
+                if probe is not None:
+                    reported = True             # the probe ran: line n is done
                 continue
             if low.startswith(("echo:", "//", "cap:", "firmware_name")):
                 log.info("machine says: %s", line)
@@ -262,8 +299,8 @@ class MarlinLink(LineLink):
         self.state = LinkState.HOLDING
         pending = self._awaiting
         if pending is not None:
-            n, where = pending
-            self._await(n, where, timeout or self.motion_timeout)
+            n, where, motion = pending
+            self._await(n, where, timeout or self.motion_timeout, motion)
         return self._status()
 
     def stop_quietly(self, hold=True):
