@@ -182,6 +182,24 @@ class LineLink:
             lines.append(line)
         return lines
 
+    def command(self, text, timeout=None):  # pragma: no cover - each dialect sends its own way
+        """Send one line and wait for its answer."""
+        raise NotImplementedError
+
+    def _home_and_preamble(self, home, home_lines, preamble, home_timeout):
+        """Home if asked (each homing line may take ``home_timeout`` s), then send the
+        preamble's lines one by one (comments and blank lines left out); the link is ready."""
+        if home:
+            for line in home_lines:
+                line = strip_comment(line)
+                if line:
+                    self.command(line, timeout=home_timeout)
+        for line in preamble:
+            line = strip_comment(line)
+            if line:
+                self.command(line)
+        self.state = LinkState.READY
+
     def take_executed(self):
         """The steps confirmed executed since the last call, in order."""
         done, self.executed = self.executed, []

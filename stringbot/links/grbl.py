@@ -207,14 +207,7 @@ class GrblLink(LineLink):
                                 "check it, then home it or unlock it ($X)")
         elif st.state not in ("Idle", "Check"):
             raise self.fail(f"the machine is not idle (state {st.state}); stop or reset it first")
-        if home:
-            for line in home_lines:
-                self.command(line, timeout=self.motion_timeout)
-        for line in preamble:
-            line = strip_comment(line)
-            if line:
-                self.command(line)
-        self.state = LinkState.READY
+        self._home_and_preamble(home, home_lines, preamble, self.motion_timeout)
 
     # ---- streaming -------------------------------------------------------------------
     def execute(self, steps, lines_for, on_executed=None):

@@ -132,14 +132,7 @@ class MarlinLink(LineLink):
         self._send(text, Where(), timeout or self.response_timeout)
 
     def prepare(self, *, home=False, preamble=(), home_lines=("G28",)):
-        if home:
-            for line in home_lines:
-                self._send(strip_comment(line), Where(), self.motion_timeout)
-        for line in preamble:
-            line = strip_comment(line)
-            if line:
-                self.command(line)
-        self.state = LinkState.READY
+        self._home_and_preamble(home, home_lines, preamble, self.motion_timeout)
 
     # ---- streaming -------------------------------------------------------------------
     def execute(self, steps, lines_for, on_executed=None):
