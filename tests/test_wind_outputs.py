@@ -5,20 +5,13 @@ import json
 
 import pytest
 
-from stringbot.cli import main
 from stringbot.planner import write_plan
 from stringbot.winding import Journal
 
+from test_wind_cli import run
 from test_wind_sim import small_plan
 
 PNG = b"\x89PNG\r\n\x1a\n" + bytes(range(256))
-
-
-def run(argv, capsys):
-    with pytest.raises(SystemExit) as info:
-        main(argv)
-    out, err = capsys.readouterr()
-    return info.value.code, out, err
 
 
 @pytest.fixture
