@@ -304,3 +304,13 @@ def test_parse_status_forms():
     st = parse_status("<Hold:0|WPos:1.0,2.0,3.0,4.0>")
     assert st.stopped and st.mpos == (1.0, 2.0, 3.0, 4.0)
     assert not parse_status("<Run|MPos:0,0,0>").stopped
+
+
+def test_error_and_alarm_words_come_from_the_device_tables():
+    from firmware_protocol import grbl as codes
+    from stringbot.links.grbl import _alarm_words, _error_words
+
+    # error 11 and alarm 3 have words in GRBL's tables (the host once fell back to a partial copy)
+    assert _error_words(11) == f"error:11 ({codes.ERROR_CODES[11]})"
+    assert _alarm_words(3) == f"ALARM:3 ({codes.ALARM_CODES[3]})"
+    assert "unknown" in _error_words(999)

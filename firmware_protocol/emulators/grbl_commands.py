@@ -177,15 +177,7 @@ def _jog(emu, block):
         return 26
     scale = 25.4 if inches else 1.0
     wco = emu.parser.wco()
-    target = list(emu.parser.position)
-    for axis, value in axis_words.items():
-        i = emu.axes.index(axis)
-        if machine:
-            target[i] = value * scale
-        elif absolute:
-            target[i] = value * scale + wco[i]
-        else:
-            target[i] += value * scale
+    target = emu.parser._target(axis_words, scale, absolute, wco, machine=machine)
     emu.parser.position = list(target)
     return emu._queue_moves([tuple(target)], rapid=False, feed=feed * scale, inverse=False,
                             line_number=0, kind="jog")

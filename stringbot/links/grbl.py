@@ -26,8 +26,9 @@ import re
 import time
 from collections import deque
 
+from firmware_protocol import grbl as grbl_codes
+
 from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment, where_of
-from .codes import grbl_alarm, grbl_error
 
 __all__ = ["GrblLink", "parse_status"]
 
@@ -421,14 +422,14 @@ class GrblLink(LineLink):
             if self._inflight:
                 self._answered(ok=False)      # a refused sync proves nothing was executed
             self.stop_quietly()
-            raise self.fail(f"the machine refused a line: {grbl_error(code) if code is not None else line}",
+            raise self.fail(f"the machine refused a line: {_error_words(code) if code is not None else line}",
                             where)
         elif line.startswith("ALARM"):
             code = _code(line)
             if code in (1, 3, 6, 7, 8, 9, 10):
                 self.position_lost = True
             self.stop_quietly(hold=False)
-            raise self.fail(f"the machine raised {grbl_alarm(code) if code is not None else line}")
+            raise self.fail(f"the machine raised {_alarm_words(code) if code is not None else line}")
         elif line.startswith("<"):
             self._status(line)
         elif _BANNER.match(line):
@@ -519,3 +520,13 @@ class GrblLink(LineLink):
 def _code(line):
     m = re.search(r":\s*(\d+)", line)
     return int(m.group(1)) if m else None
+
+
+def _error_words(code):
+    """``error:N`` with GRBL's own words for it."""
+    return f"error:{code} ({grbl_codes.describe_error(code)})"
+
+
+def _alarm_words(code):
+    """``ALARM:N`` with GRBL's own words for it."""
+    return f"ALARM:{code} ({grbl_codes.describe_alarm(code)})"

@@ -21,8 +21,9 @@ import logging
 import re
 import time
 
+from firmware_protocol import marlin as marlin_codes
+
 from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment, where_of
-from .codes import marlin_checksum
 
 __all__ = ["MarlinLink", "numbered"]
 
@@ -42,7 +43,7 @@ def waits_on_motion(text):
 def numbered(n, text):
     """The wire form of line ``n``: ``N<n> <text>*<checksum>``."""
     body = f"N{n} {text}"
-    return f"{body}*{marlin_checksum(body)}"
+    return f"{body}*{marlin_codes.checksum(body)}"
 
 
 class MarlinLink(LineLink):
