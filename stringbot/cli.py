@@ -100,15 +100,18 @@ class _Lines(click.ParamType):
 @click.option("--gray", type=click.Choice(["decolor", "luminance"]), default="decolor", show_default=True,
               help="Colour to gray: contrast-preserving decolorization or plain luminance.")
 @click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
-@click.option("--beta", type=float, default=5.0, show_default=True, help="Short-chord penalty.")
-@click.option("--gamma", type=float, default=10.0, show_default=True, help="Edge-direction penalty.")
-@click.option("-T", "--sharpness", "T", type=float, default=30.0, show_default=True,
-              help="T of tanh(f / T): larger spreads chords out.")
+@click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default="auto", show_default=True,
+              help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "
+                   "areas), or auto: plan both, keep the higher SSIM.")
+@click.option("--beta", type=float, default=None, help="Short-chord penalty [detail: 5].")
+@click.option("--gamma", type=float, default=None, help="Edge-direction penalty [detail: 10].")
+@click.option("-T", "--sharpness", "T", type=float, default=None,
+              help="T of tanh(f / T): larger spreads chords out [detail: 30].")
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame, crop, start_pin, size, lines,
-             importance, gray, alpha, beta, gamma, T, epsilon, iterations, no_cache):
+             importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
@@ -140,7 +143,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
         raise BadInput(f"--lines {lines}; expected a positive number or auto")
     p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
                      lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
-                     importance=importance, gray=gray, alpha=alpha, beta=beta, gamma=gamma, T=T,
+                     importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma, T=T,
                      epsilon=epsilon, iterations=iterations, cache=not no_cache)
     if machine is not None:
         p.parameters["machine"] = machine
@@ -149,7 +152,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
     write_atomic(preview, png)
     s = p.stats
     kind = "disconnected " if not p.connected else ""
-    click.echo(f"{kind}{p.method}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
+    style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
+    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
                f"diameters, {s['seconds']:.2f} s -> {output} (preview {preview})")
     if mach is not None:
         if not p.connected:

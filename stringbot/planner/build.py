@@ -5,7 +5,15 @@ Methods
 ``fitness`` (default)
     The paper's method: chord space, regularised least-squares fitness,
     connected sampling with error diffusion (or, ``disconnected=True``, the
-    priority-queue chord set).
+    priority-queue chord set).  Its knobs beta, gamma and T come in two
+    *styles*: ``detail`` (the paper's defaults, 5 / 10 / 30) and ``fill``
+    (regularisation 30 times stronger and a sharp mapping, T = 1: a chord's
+    fitness is then close to its weighted mean darkness and next to no error
+    is diffused, so large flat dark areas are filled).  ``auto`` (the
+    default) plans both and keeps the drawing that scores higher by the
+    paper's own measure (section 4.1: SSIM plain plus blurred, see
+    :func:`stringbot.planner.render.score_chords`).  Giving beta, gamma or T
+    means ``detail`` with those values.
 ``greedy``
     The ThreadTone baseline (see :mod:`stringbot.planner.greedy`).
 """
@@ -25,7 +33,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["plan_picture", "auto_lines", "check_knobs", "DEFAULTS", "MAX_PINS"]
 
-#: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").
+#: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").  beta, gamma and T are
+#: those of the ``detail`` style; ``fill`` uses :data:`FILL`.
 DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
             "iterations": 25, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
@@ -33,6 +42,9 @@ MAX_PINS = 2000
 MIN_SIZE, MAX_SIZE = 32, 2001
 MAX_LINES = 100_000
 METHODS = ("fitness", "greedy")
+STYLES = ("auto", "detail", "fill")
+#: The ``fill`` style: the paper's regularisation weights times 30 and a sharp tanh.
+FILL = {"beta": 150.0, "gamma": 300.0, "T": 1.0}
 
 
 def auto_lines(gray, mask):
@@ -40,12 +52,15 @@ def auto_lines(gray, mask):
     return int(round(500 + 10 * (255.0 - float(np.asarray(gray)[mask].mean()))))
 
 
-def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gamma, T, epsilon, iterations):
-    """Raise BadInput naming the first knob out of range."""
+def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gamma, T, epsilon, iterations,
+                style="auto"):
+    """Raise BadInput naming the first knob out of range (None: a knob not given)."""
     if frame not in ("circle", "square"):
         raise BadInput(f"--frame {frame!r}; expected circle or square")
     if method not in METHODS:
         raise BadInput(f"--method {method!r}; expected one of {', '.join(METHODS)}")
+    if style not in STYLES:
+        raise BadInput(f"--style {style!r}; expected one of {', '.join(STYLES)}")
     if not MIN_SIZE <= size <= MAX_SIZE:
         raise BadInput(f"--size {size}; expected {MIN_SIZE}..{MAX_SIZE} pixels")
     top = min(MAX_PINS, 2 * size)
@@ -56,14 +71,33 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
     if not 0 <= start_pin < pins:
         raise BadInput(f"--start-pin {start_pin}; expected 0..{pins - 1}")
     for name, value, ok, expected in (
-            ("--alpha", alpha, 0 <= alpha <= 1, "0..1"),
-            ("--beta", beta, beta >= 0, ">= 0"),
-            ("--gamma", gamma, gamma >= 0, ">= 0"),
-            ("-T/--sharpness", T, T > 0, "> 0"),
-            ("--epsilon", epsilon, 0 <= epsilon <= 1000, "0..1000 pins"),
-            ("--iterations", iterations, 1 <= iterations <= 10_000, "1..10000")):
-        if not (ok and math.isfinite(value)):
+            ("--alpha", alpha, lambda x: 0 <= x <= 1, "0..1"),
+            ("--beta", beta, lambda x: x >= 0, ">= 0"),
+            ("--gamma", gamma, lambda x: x >= 0, ">= 0"),
+            ("-T/--sharpness", T, lambda x: x > 0, "> 0"),
+            ("--epsilon", epsilon, lambda x: 0 <= x <= 1000, "0..1000 pins"),
+            ("--iterations", iterations, lambda x: 1 <= x <= 10_000, "1..10000")):
+        if value is not None and not (math.isfinite(value) and ok(value)):
             raise BadInput(f"{name} {value}; expected {expected}")
+    given = [name for name, value in (("--beta", beta), ("--gamma", gamma), ("-T", T)) if value is not None]
+    if style == "fill" and given:
+        raise BadInput(f"--style fill sets beta, gamma and T itself, but {', '.join(given)} was given; "
+                       "expected --style detail (or no --style) with them")
+
+
+def style_candidates(style, *, beta=None, gamma=None, T=None):
+    """The fitness knob settings to try: ``[(style name, {"beta", "gamma", "T"}), ...]``.
+
+    ``auto`` gives both styles unless beta, gamma or T is given (then
+    ``detail`` with those values, the rest at the paper's defaults).
+    """
+    given = {k: v for k, v in (("beta", beta), ("gamma", gamma), ("T", T)) if v is not None}
+    detail = {k: float(given.get(k, DEFAULTS[k])) for k in ("beta", "gamma", "T")}
+    if style == "fill":
+        return [("fill", dict(FILL))]
+    if style == "detail" or given:
+        return [("detail", detail)]
+    return [("detail", detail), ("fill", dict(FILL))]
 
 
 def thread_length(pin_xy, chords):
@@ -75,8 +109,8 @@ def thread_length(pin_xy, chords):
 
 
 def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="auto", start_pin=0,
-                 method="fitness", disconnected=False, importance=None, gray="decolor",
-                 alpha=DEFAULTS["alpha"], beta=DEFAULTS["beta"], gamma=DEFAULTS["gamma"], T=DEFAULTS["T"],
+                 method="fitness", disconnected=False, importance=None, gray="decolor", style="auto",
+                 alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
                  picture=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"]):
     """Plan a thread painting of a picture.
@@ -86,8 +120,12 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     path : str or Path
         The picture.
     pins, frame, size, crop, lines, start_pin, method, disconnected, importance, gray,
-    alpha, beta, gamma, T, epsilon, iterations
+    alpha, epsilon, iterations
         The knobs (see ``stringbot plan --help`` and docs/planner.md).
+    style : {"auto", "detail", "fill"}
+        Fitness only: which setting of beta, gamma and T (see the module notes).
+    beta, gamma, T : float or None
+        Fitness only: None for the style's values; any given means ``detail``.
     cache : bool
         Use the on-disk chord-pixel cache.
     rng : None, int or numpy Generator
@@ -106,9 +144,11 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     """
     t0 = time.perf_counter()
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin, method=method,
-                alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations)
+                alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations, style=style)
     if disconnected and method != "fitness":
         raise BadInput("--disconnected works with --method fitness only")
+    if method == "greedy" and (style != "auto" or any(x is not None for x in (beta, gamma, T))):
+        raise BadInput("--style, --beta, --gamma and -T are knobs of --method fitness; greedy has none of them")
     pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
     weights = None
     if importance is not None:
@@ -142,31 +182,18 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
         seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
-        from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
-        from .sampling import fitness_table, sample_connected, sample_disconnected
-
-        params.update(alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations)
-        inv = 255.0 - pic.gray
-        if float(inv[mask].max(initial=0.0)) < 1.0:
-            raise BadInput(f"{method} found nothing to draw: the picture is blank inside the frame; "
-                           "expected a picture with some dark parts")
-        gy, gx = gradients(inv)
-        b = (1.0 - alpha) * inv + alpha * np.hypot(gx, gy)
-        w = mask.astype(np.float32) if weights is None else np.where(mask, weights, 0).astype(np.float32)
-        d = edge_consistency(space, rowptr, chords_of_pixel, gy, gx) if gamma > 0 else np.zeros(space.m)
-        v = chord_weights(space, d, beta=beta, gamma=gamma)
-        f, info = solve_fitness(rowptr, chords_of_pixel, b.ravel(), w.ravel(), v, iterations=iterations)
-        del rowptr, chords_of_pixel
+        params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style)
         t_solve = time.perf_counter()
-        stats.update(solve_iterations=info["iterations"], solve_residual=round(info["residual"], 3),
-                     fitness_min=round(float(f.min()), 4), fitness_max=round(float(f.max()), 4),
-                     solve_seconds=round(t_solve - t_chords, 3))
-        table = fitness_table(space, f, T=T)
-        if disconnected:
-            chords = sample_disconnected(space, table, k, epsilon=epsilon)
-            seq = []
-        else:
-            seq = sample_connected(space, table, k, epsilon=epsilon, start_pin=start_pin)
+        runs = _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, alpha=alpha, epsilon=epsilon,
+                             iterations=iterations, start_pin=start_pin, disconnected=disconnected,
+                             candidates=style_candidates(style, beta=beta, gamma=gamma, T=T))
+        del rowptr, chords_of_pixel
+        best = max(runs, key=lambda r: r["rank"])
+        params.update(style=best["style"], **best["knobs"])
+        stats.update(best["stats"], solve_seconds=round(time.perf_counter() - t_solve, 3))
+        if len(runs) > 1:
+            stats["styles"] = {r["style"]: r["scores"] for r in runs}
+        seq, chords = best["seq"], best["chords"]
     if chords is None:
         chord_list = list(zip(seq[:-1], seq[1:]))
     else:
@@ -181,3 +208,49 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     return Plan(pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
                 connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])])
+
+
+def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alpha, epsilon, iterations, start_pin,
+                  disconnected, candidates):
+    """Solve and sample once per candidate knob setting; score each drawing when there are several.
+
+    Returns
+    -------
+    list of dict
+        Per candidate: ``style``, ``knobs``, ``seq`` (connected) or ``chords``
+        (disconnected, else None), ``stats``, ``scores`` and ``rank``
+        (SSIM plus blurred SSIM against the picture; 0 for a single candidate).
+    """
+    from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
+    from .render import score_chords
+    from .sampling import fitness_table, sample_connected, sample_disconnected
+
+    inv = 255.0 - pic.gray
+    if float(inv[mask].max(initial=0.0)) < 1.0:
+        raise BadInput("fitness found nothing to draw: the picture is blank inside the frame; "
+                       "expected a picture with some dark parts")
+    gy, gx = gradients(inv)
+    b = ((1.0 - alpha) * inv + alpha * np.hypot(gx, gy)).ravel()
+    w = (mask.astype(np.float32) if weights is None else np.where(mask, weights, 0).astype(np.float32)).ravel()
+    d = (edge_consistency(space, rowptr, chords_of_pixel, gy, gx) if any(c["gamma"] > 0 for _, c in candidates)
+         else np.zeros(space.m))
+    runs = []
+    for name, knobs in candidates:
+        v = chord_weights(space, d, beta=knobs["beta"], gamma=knobs["gamma"])
+        f, info = solve_fitness(rowptr, chords_of_pixel, b, w, v, iterations=iterations)
+        table = fitness_table(space, f, T=knobs["T"])
+        if disconnected:
+            chords, seq = sample_disconnected(space, table, k, epsilon=epsilon), []
+        else:
+            chords, seq = None, sample_connected(space, table, k, epsilon=epsilon, start_pin=start_pin)
+        run = {"style": name, "knobs": knobs, "seq": seq, "chords": chords, "scores": None, "rank": 0.0,
+               "stats": {"solve_iterations": info["iterations"], "solve_residual": round(info["residual"], 3),
+                         "fitness_min": round(float(f.min()), 4), "fitness_max": round(float(f.max()), 4)}}
+        if len(candidates) > 1:
+            drawn = chords if disconnected else list(zip(seq[:-1], seq[1:]))
+            sc = score_chords(drawn, space.pin_xy, pic.gray, frame=space.frame)
+            run["scores"] = {"ssim": round(sc["ssim"], 4), "ssim_blurred": round(sc["ssim_blurred"], 4)}
+            run["rank"] = sc["ssim"] + sc["ssim_blurred"]
+            log.info("style %s: SSIM %.4f, blurred %.4f", name, sc["ssim"], sc["ssim_blurred"])
+        runs.append(run)
+    return runs

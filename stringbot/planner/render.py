@@ -19,7 +19,7 @@ from .chords import line_pixels, pin_pixels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw", "png_bytes", "score", "SCORE_DRAW", "SCORE_SIZE", "BLUR_SIGMA"]
+__all__ = ["draw", "png_bytes", "score", "score_chords", "SCORE_DRAW", "SCORE_SIZE", "BLUR_SIGMA"]
 
 SCORE_DRAW = 1001
 SCORE_SIZE = 201
@@ -73,6 +73,8 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA):
     gray : ndarray of float, shape (n, n)
         The picture's crop, gray levels in [0, 255] (any square size; 201
         avoids a second resampling).
+    frame : {"circle", "square"}, optional
+        Default: the plan's.
     blur_sigma : float
         Gaussian sigma, in pixels at 201 x 201, of the blurred comparison.
 
@@ -81,20 +83,24 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA):
     dict
         ``{"ssim": float, "ssim_blurred": float, "lines": int}``.
     """
+    return score_chords(plan.chord_list(), plan.pin_xy, gray, frame=frame or plan.frame, blur_sigma=blur_sigma)
+
+
+def score_chords(chords, pin_xy, gray, *, frame, blur_sigma=BLUR_SIGMA):
+    """:func:`score` for chords ``[(i, j), ...]`` on pins ``pin_xy`` (shape (pins, 2))."""
     from scipy.ndimage import gaussian_filter
     from skimage.metrics import structural_similarity
     from skimage.transform import resize
 
     from .fitness import frame_mask
 
-    frame = frame or plan.frame
     g = np.asarray(gray, dtype=np.float64) / 255.0
     g = np.where(frame_mask(g.shape[0], frame), g, 1.0)
-    drawing = draw(plan, size=SCORE_DRAW).astype(np.float64) / 255.0
+    drawing = draw(chords, pin_xy, size=SCORE_DRAW).astype(np.float64) / 255.0
     a = resize(g, (SCORE_SIZE, SCORE_SIZE), anti_aliasing=True)
     b = resize(drawing, (SCORE_SIZE, SCORE_SIZE), anti_aliasing=True)
     ssim = dict(data_range=1.0, gaussian_weights=True, sigma=1.5, use_sample_covariance=False)
     plain = structural_similarity(a, b, **ssim)
     ab, bb = gaussian_filter(a, blur_sigma), gaussian_filter(b, blur_sigma)
     blurred = structural_similarity(ab, bb, **ssim)
-    return {"ssim": float(plain), "ssim_blurred": float(blurred), "lines": len(plan.chord_list())}
+    return {"ssim": float(plain), "ssim_blurred": float(blurred), "lines": len(chords)}
