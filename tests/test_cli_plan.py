@@ -57,14 +57,14 @@ def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
     assert plan.method == "fitness" and plan.connected
     assert plan.source["path"] == str(picture) and plan.source["width"] == 120
     for key in ("pins", "frame", "crop", "start_pin", "size", "lines", "alpha", "beta", "gamma", "T",
-                "epsilon", "iterations", "gray", "importance", "disconnected"):
+                "epsilon", "iterations", "gray", "importance", "disconnected", "style", "style_requested"):
         assert key in plan.parameters, key
-    assert {"lines", "thread_diameters", "seconds"} <= set(plan.stats)
+    assert {"lines", "thread_diameters", "seconds", "styles"} <= set(plan.stats)
     preview = Image.open(tmp_path / "p.png")
     assert preview.size == (1001, 1001)
     line = stdout.strip()
     assert "\n" not in line
-    for part in ("fitness", "60 pins", "80 lines", "diameters", f"{plan.stats['thread_diameters']:.1f}", " s "):
+    for part in (f"fitness ({plan.parameters['style']}):", "60 pins", "80 lines", "diameters", f"{plan.stats['thread_diameters']:.1f}", " s "):
         assert part in line, line
 
 
@@ -189,6 +189,9 @@ def test_bad_pictures(tmp_path, which):
     (["--start-pin", "400"], "--start-pin"),
     (["-T", "0"], "-T/--sharpness 0"),
     (["--method", "greedy", "--disconnected"], "--disconnected"),
+    (["--style", "fill", "-T", "5"], "--style fill sets beta, gamma and T itself"),
+    (["--style", "crisp"], "--style"),
+    (["--method", "greedy", "--beta", "2"], "knobs of --method fitness"),
 ])
 def test_bad_options(tmp_path, picture, args, words):
     out = tmp_path / "p.json"
