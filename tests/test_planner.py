@@ -12,20 +12,15 @@ from stringbot.planner.chords import (chord_pixels, chord_space, line_pixels, pi
                                       pixel_chords)
 from stringbot.planner.fitness import frame_mask, solve_fitness
 from stringbot.planner.greedy import greedy_sequence
-from stringbot.planner.image import Picture
 from stringbot.planner.render import draw, score
 from stringbot.planner.sampling import _Diffuser, fitness_table, sample_connected, sample_disconnected
+
+from planner_helpers import picture
 
 
 @pytest.fixture(autouse=True)
 def private_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("STRINGBOT_CACHE", str(tmp_path / "cache"))
-
-
-def picture(gray):
-    n = gray.shape[0]
-    return Picture(np.asarray(gray, dtype=np.float32), {"cx": n / 2, "cy": n / 2, "r": n / 2},
-                   {"path": "synthetic", "sha256": "0" * 64, "width": n, "height": n}, "gray")
 
 
 def bar_picture(size=101):

@@ -9,8 +9,9 @@ import pytest
 
 from stringbot.errors import BadInput
 from stringbot.planner.build import DEFAULTS, FILL, plan_picture, style_candidates
-from stringbot.planner.image import Picture
 from stringbot.planner.render import draw, score
+
+from planner_helpers import picture
 
 SIZE, PINS, LINES = 101, 100, 300
 
@@ -18,12 +19,6 @@ SIZE, PINS, LINES = 101, 100, 300
 @pytest.fixture(autouse=True)
 def private_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("STRINGBOT_CACHE", str(tmp_path / "cache"))
-
-
-def picture(gray):
-    n = gray.shape[0]
-    return Picture(np.asarray(gray, dtype=np.float32), {"cx": n / 2, "cy": n / 2, "r": n / 2},
-                   {"path": "synthetic", "sha256": "0" * 64, "width": n, "height": n}, "gray")
 
 
 def silhouette(n=SIZE):
