@@ -102,11 +102,12 @@ def main():
         greedy = plan_picture(path, pins=opts.pins, size=opts.size, method="greedy", picture=pic,
                               greedy_reference_radius=None if opts.greedy_literal else 500.0)
         k = greedy.stats["lines"]
-        fitness = plan_picture(path, pins=opts.pins, size=opts.size, lines=k, picture=pic)
+        ref = read_picture(path, size=201, weights=pic.weights)  # as `stringbot score` reads it
+        fitness = plan_picture(path, pins=opts.pins, size=opts.size, lines=k, picture=pic, reference=ref)
         plans = [greedy, fitness]
         if opts.disconnected:
-            plans.append(plan_picture(path, pins=opts.pins, size=opts.size, lines=k, disconnected=True, picture=pic))
-        ref = read_picture(path, size=201, weights=pic.weights)  # as `stringbot score` reads it
+            plans.append(plan_picture(path, pins=opts.pins, size=opts.size, lines=k, disconnected=True, picture=pic,
+                                      reference=ref))
         scores = [score(p, ref.gray) for p in plans]
         style = fitness.parameters["style"]
         detail = scores[1] if style == "detail" else score(

@@ -100,9 +100,9 @@ class _Lines(click.ParamType):
 @click.option("--gray", type=click.Choice(["decolor", "luminance"]), default="decolor", show_default=True,
               help="Colour to gray: contrast-preserving decolorization or plain luminance.")
 @click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
-@click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default="auto", show_default=True,
+@click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default=None,
               help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "
-                   "areas), or auto: plan both, keep the higher SSIM.")
+                   "areas), or auto: plan both, keep the higher SSIM [default: auto].")
 @click.option("--beta", type=float, default=None, help="Short-chord penalty [detail: 5].")
 @click.option("--gamma", type=float, default=None, help="Edge-direction penalty [detail: 10].")
 @click.option("-T", "--sharpness", "T", type=float, default=None,

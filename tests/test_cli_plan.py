@@ -68,6 +68,20 @@ def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
         assert part in line, line
 
 
+@pytest.mark.parametrize("size", ["101", "251"])
+def test_auto_records_the_scores_that_score_gives(tmp_path, picture, size):
+    out = tmp_path / "p.json"
+    code, _, err = run("plan", picture, "-o", out, "--pins", "60", "--size", size, "--lines", "120")
+    assert code == 0, err
+    plan = read_plan(out)
+    kept = plan.stats["styles"][plan.parameters["style"]]
+    code, stdout, err = run("score", out, "--json")
+    assert code == 0, err
+    got = json.loads(stdout)
+    assert got["ssim"] == pytest.approx(kept["ssim"], abs=2e-4)
+    assert got["ssim_blurred"] == pytest.approx(kept["ssim_blurred"], abs=2e-4)
+
+
 def test_greedy_square_crop_and_preview_path(tmp_path, picture):
     out, prev = tmp_path / "g.json", tmp_path / "view.png"
     code, stdout, err = run("plan", picture, "-o", out, "--preview", prev, "--method", "greedy", "--frame",
@@ -192,6 +206,7 @@ def test_bad_pictures(tmp_path, which):
     (["--style", "fill", "-T", "5"], "--style fill sets beta, gamma and T itself"),
     (["--style", "crisp"], "--style"),
     (["--method", "greedy", "--beta", "2"], "knobs of --method fitness"),
+    (["--method", "greedy", "--style", "auto"], "knobs of --method fitness"),
 ])
 def test_bad_options(tmp_path, picture, args, words):
     out = tmp_path / "p.json"

@@ -31,7 +31,8 @@ from .plan_file import Plan
 
 log = logging.getLogger(__name__)
 
-__all__ = ["plan_picture", "auto_lines", "check_knobs", "DEFAULTS", "MAX_PINS"]
+__all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "DEFAULTS", "FILL", "STYLES",
+           "MAX_PINS"]
 
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").  beta, gamma and T are
 #: those of the ``detail`` style; ``fill`` uses :data:`FILL`.
@@ -59,7 +60,7 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
         raise BadInput(f"--frame {frame!r}; expected circle or square")
     if method not in METHODS:
         raise BadInput(f"--method {method!r}; expected one of {', '.join(METHODS)}")
-    if style not in STYLES:
+    if style is not None and style not in STYLES:
         raise BadInput(f"--style {style!r}; expected one of {', '.join(STYLES)}")
     if not MIN_SIZE <= size <= MAX_SIZE:
         raise BadInput(f"--size {size}; expected {MIN_SIZE}..{MAX_SIZE} pixels")
@@ -86,10 +87,21 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
 
 
 def style_candidates(style, *, beta=None, gamma=None, T=None):
-    """The fitness knob settings to try: ``[(style name, {"beta", "gamma", "T"}), ...]``.
+    """The fitness knob settings to try.
 
-    ``auto`` gives both styles unless beta, gamma or T is given (then
-    ``detail`` with those values, the rest at the paper's defaults).
+    Parameters
+    ----------
+    style : {"auto", "detail", "fill"} or None
+        None is ``auto``.
+    beta, gamma, T : float or None
+        Knobs given by the user (None: not given).
+
+    Returns
+    -------
+    list of (str, dict)
+        ``[(style name, {"beta": float, "gamma": float, "T": float}), ...]``:
+        both styles for ``auto``, unless beta, gamma or T is given (then
+        ``detail`` with those values and the paper's defaults for the rest).
     """
     given = {k: v for k, v in (("beta", beta), ("gamma", gamma), ("T", T)) if v is not None}
     detail = {k: float(given.get(k, DEFAULTS[k])) for k in ("beta", "gamma", "T")}
@@ -97,6 +109,8 @@ def style_candidates(style, *, beta=None, gamma=None, T=None):
         return [("fill", dict(FILL))]
     if style == "detail" or given:
         return [("detail", detail)]
+    if style not in (None, "auto"):
+        raise ValueError(f"style {style!r}; expected one of {STYLES}")
     return [("detail", detail), ("fill", dict(FILL))]
 
 
@@ -109,10 +123,10 @@ def thread_length(pin_xy, chords):
 
 
 def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="auto", start_pin=0,
-                 method="fitness", disconnected=False, importance=None, gray="decolor", style="auto",
+                 method="fitness", disconnected=False, importance=None, gray="decolor", style=None,
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
-                 picture=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"]):
+                 picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"]):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -122,8 +136,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     pins, frame, size, crop, lines, start_pin, method, disconnected, importance, gray,
     alpha, epsilon, iterations
         The knobs (see ``stringbot plan --help`` and docs/planner.md).
-    style : {"auto", "detail", "fill"}
-        Fitness only: which setting of beta, gamma and T (see the module notes).
+    style : {"auto", "detail", "fill"} or None
+        Fitness only: which setting of beta, gamma and T (see the module
+        notes); None is ``auto``.
     beta, gamma, T : float or None
         Fitness only: None for the style's values; any given means ``detail``.
     cache : bool
@@ -132,6 +147,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         Randomness of the decolorization (None: a fixed seed).
     picture : Picture, optional
         An already read picture (skips reading ``path``).
+    reference : Picture, optional
+        With ``picture``: the picture as ``stringbot score`` reads it (at
+        201 px), to compare the styles against; without it they are compared
+        against ``picture`` itself.  Without ``picture`` it is read from ``path``.
     greedy_reference_radius : float or None
         Greedy only: the picture radius at which its weight of 15 holds
         (ThreadTone's 500); None applies 15 at the working size as it is.
@@ -147,7 +166,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
                 alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations, style=style)
     if disconnected and method != "fitness":
         raise BadInput("--disconnected works with --method fitness only")
-    if method == "greedy" and (style != "auto" or any(x is not None for x in (beta, gamma, T))):
+    if method == "greedy" and (style is not None or any(x is not None for x in (beta, gamma, T))):
         raise BadInput("--style, --beta, --gamma and -T are knobs of --method fitness; greedy has none of them")
     pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
     weights = None
@@ -182,17 +201,23 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
         seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
-        params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style)
-        t_solve = time.perf_counter()
+        params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style or "auto")
+        candidates = style_candidates(style, beta=beta, gamma=gamma, T=T)
+        ref = None
+        if len(candidates) > 1:
+            from .render import SCORE_SIZE
+
+            ref = (reference.gray if reference is not None else pic.gray if picture is not None else
+                   read_picture(path, size=SCORE_SIZE, crop=pic.crop, gray=gray, weights=pic.weights).gray)
         runs = _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, alpha=alpha, epsilon=epsilon,
                              iterations=iterations, start_pin=start_pin, disconnected=disconnected,
-                             candidates=style_candidates(style, beta=beta, gamma=gamma, T=T))
+                             candidates=candidates, reference=ref)
         del rowptr, chords_of_pixel
         best = max(runs, key=lambda r: r["rank"])
         params.update(style=best["style"], **best["knobs"])
-        stats.update(best["stats"], solve_seconds=round(time.perf_counter() - t_solve, 3))
+        stats.update(best["stats"])
         if len(runs) > 1:
-            stats["styles"] = {r["style"]: r["scores"] for r in runs}
+            stats["styles"] = {r["style"]: dict(r["scores"], solve_seconds=r["stats"]["solve_seconds"]) for r in runs}
         seq, chords = best["seq"], best["chords"]
     if chords is None:
         chord_list = list(zip(seq[:-1], seq[1:]))
@@ -211,8 +236,12 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
 
 
 def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alpha, epsilon, iterations, start_pin,
-                  disconnected, candidates):
+                  disconnected, candidates, reference=None):
     """Solve and sample once per candidate knob setting; score each drawing when there are several.
+
+    ``reference`` (a gray array, any square size) is what the drawings are
+    scored against; plain SSIM, with every pixel weighted alike as in the
+    paper's section 4.1 (an importance mask weighs the solve, not the choice).
 
     Returns
     -------
@@ -236,8 +265,10 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
          else np.zeros(space.m))
     runs = []
     for name, knobs in candidates:
+        t = time.perf_counter()
         v = chord_weights(space, d, beta=knobs["beta"], gamma=knobs["gamma"])
         f, info = solve_fitness(rowptr, chords_of_pixel, b, w, v, iterations=iterations)
+        t_solve = round(time.perf_counter() - t, 3)
         table = fitness_table(space, f, T=knobs["T"])
         if disconnected:
             chords, seq = sample_disconnected(space, table, k, epsilon=epsilon), []
@@ -245,10 +276,11 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
             chords, seq = None, sample_connected(space, table, k, epsilon=epsilon, start_pin=start_pin)
         run = {"style": name, "knobs": knobs, "seq": seq, "chords": chords, "scores": None, "rank": 0.0,
                "stats": {"solve_iterations": info["iterations"], "solve_residual": round(info["residual"], 3),
+                         "solve_seconds": t_solve,
                          "fitness_min": round(float(f.min()), 4), "fitness_max": round(float(f.max()), 4)}}
         if len(candidates) > 1:
             drawn = chords if disconnected else list(zip(seq[:-1], seq[1:]))
-            sc = score_chords(drawn, space.pin_xy, pic.gray, frame=space.frame)
+            sc = score_chords(drawn, space.pin_xy, pic.gray if reference is None else reference, frame=space.frame)
             run["scores"] = {"ssim": round(sc["ssim"], 4), "ssim_blurred": round(sc["ssim_blurred"], 4)}
             run["rank"] = sc["ssim"] + sc["ssim_blurred"]
             log.info("style %s: SSIM %.4f, blurred %.4f", name, sc["ssim"], sc["ssim_blurred"])

@@ -87,7 +87,25 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA):
 
 
 def score_chords(chords, pin_xy, gray, *, frame, blur_sigma=BLUR_SIGMA):
-    """:func:`score` for chords ``[(i, j), ...]`` on pins ``pin_xy`` (shape (pins, 2))."""
+    """SSIM of chords drawn on pins against a picture, plain and blurred (see :func:`score`).
+
+    Parameters
+    ----------
+    chords : sequence of (int, int)
+    pin_xy : ndarray of float, shape (pins, 2)
+        Pin positions in the unit square (x right, y down).
+    gray : ndarray of float, shape (n, n)
+        The picture's crop, gray levels in [0, 255].
+    frame : {"circle", "square"}
+        Outside a circle the picture counts as white.
+    blur_sigma : float
+        Gaussian sigma, in pixels at 201 x 201, of the blurred comparison.
+
+    Returns
+    -------
+    dict
+        ``{"ssim": float, "ssim_blurred": float, "lines": int}``.
+    """
     from scipy.ndimage import gaussian_filter
     from skimage.metrics import structural_similarity
     from skimage.transform import resize
