@@ -11,16 +11,8 @@ from firmware_protocol.machine import load_machine
 from stringbot.errors import MachineFailure
 from stringbot.links.dynamixel import DynamixelLink
 from stringbot.motion import hook_steps
-from stringbot.planner import Plan
 from test_dynamixel_sdk import serve
-
-
-def make_plan(sequence, pins=300):
-    a = np.arange(pins) * 2 * np.pi / pins
-    xy = np.stack([0.5 + 0.5 * np.sin(a), 0.5 - 0.5 * np.cos(a)], axis=1)
-    return Plan(pins=pins, frame="circle", pin_xy=xy, crop={"cx": 50, "cy": 50, "r": 50},
-                sequence=list(sequence), method="hand", parameters={}, stats={},
-                source={"path": "hand.png", "sha256": "0" * 64, "width": 100, "height": 100})
+from test_gcode_replay import make_plan
 
 
 def random_sequence(n, pins=300, seed=3):

@@ -70,13 +70,10 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA):
     Parameters
     ----------
     plan : Plan
-    gray : ndarray of float, shape (n, n)
-        The picture's crop, gray levels in [0, 255] (any square size; 201
-        avoids a second resampling).
+    gray, blur_sigma
+        As for :func:`score_chords` (a ``gray`` of 201 x 201 avoids a second resampling).
     frame : {"circle", "square"}, optional
         Default: the plan's.
-    blur_sigma : float
-        Gaussian sigma, in pixels at 201 x 201, of the blurred comparison.
 
     Returns
     -------
