@@ -174,11 +174,12 @@ class GcodeFirmware(Emulator):
             self._out += line.encode("latin-1") + self.EOL
 
     # ---- port faults ------------------------------------------------------------------------------
-    def _line_faults(self):
+    def _line_faults(self, raw):
         """Count a received line; handle the faults that take the port or the firmware away.
 
-        Returns the set of fault kinds left for the protocol to apply
-        (``garble``, ``error``, ``drop-ok``), or None when the line is gone.
+        Returns ``(raw, kinds)``: the line as received (garbled in transit by
+        a ``garble`` fault) and the set of fault kinds left for the protocol
+        to apply (``error``, ``drop-ok``); or None when the line is gone.
         """
         kinds = self.faults.next_line()
         if "power" in kinds:
@@ -190,7 +191,9 @@ class GcodeFirmware(Emulator):
         if "reset" in kinds:
             self._brownout()
             return None
-        return kinds
+        if "garble" in kinds:
+            raw = self.garble(raw)
+        return raw, kinds
 
     @staticmethod
     def garble(raw):

@@ -200,11 +200,10 @@ class GrblEmulator(GcodeFirmware):
                 self._raw.append(c)
 
     def _line(self, raw):
-        kinds = self._line_faults()
-        if kinds is None:
+        got = self._line_faults(raw)
+        if got is None:
             return
-        if "garble" in kinds:
-            raw = self.garble(raw)
+        raw, kinds = got
         silent = "drop-ok" in kinds
         if "error" in kinds:
             log.info("fault: line %r rejected", bytes(raw))

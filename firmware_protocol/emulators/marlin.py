@@ -117,11 +117,10 @@ class MarlinEmulator(GcodeFirmware):
             self._start_task(self._command(command), silent)
 
     def _line(self, raw):
-        kinds = self._line_faults()
-        if kinds is None:
+        got = self._line_faults(raw)
+        if got is None:
             return
-        if "garble" in kinds:
-            raw = self.garble(raw)
+        raw, kinds = got
         text = raw.decode("latin-1").split(";", 1)[0][:mc.MAX_CMD_SIZE - 1]
         command = text.lstrip(" ")
         if not command:
