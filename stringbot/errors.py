@@ -1,6 +1,6 @@
 """Exceptions that the command line turns into exit codes.
 
-Every layer raises these (or a subclass); ``cli.py`` prints their message as
+Every layer raises these (or a subclass); the ``stringbot.cli`` package prints their message as
 one line and exits with the code named here.  Any layer may import this module.
 """
 

@@ -1,0 +1,65 @@
+"""The ``stringbot`` command: parses, builds objects, calls the layers.
+
+The only package that talks to the terminal; each area's commands live in a
+module of their own (planning, machines, winding) and register on :data:`cli`.  Errors become one line and an
+exit code: :class:`~stringbot.errors.BadInput` and bad options -> 2,
+:class:`~stringbot.errors.MachineFailure` -> 1, Ctrl-C -> 130.
+"""
+
+import logging
+import sys
+
+import click
+
+from .. import __version__
+from ..errors import BadInput, Interrupted, MachineFailure
+
+log = logging.getLogger("stringbot")
+
+
+def _bad_input_types():
+    from firmware_protocol.machine import MachineFileError
+    return (BadInput, MachineFileError)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="stringbot")
+@click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
+def cli(verbose):
+    """Plan a thread painting from a picture and wind it on a string-art machine."""
+    level = logging.WARNING - 10 * min(verbose, 2)
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+
+
+def fail(message, code=2):
+    """Print one error line and exit with ``code``."""
+    click.echo(f"stringbot: error: {message}", err=True)
+    sys.exit(code)
+
+
+def main(argv=None):
+    """Entry point: run the command group, turning every failure into one line and an exit code."""
+    try:
+        cli.main(args=argv, prog_name="stringbot", standalone_mode=False)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    except click.Abort:
+        click.echo("stringbot: stopped", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        # usage errors: one line, naming the option and what was expected
+        fail(exc.format_message(), exc.exit_code if exc.exit_code else 2)
+    except _bad_input_types() as exc:
+        fail(str(exc), 2)
+    except MachineFailure as exc:
+        fail(str(exc), 1)
+    except Interrupted as exc:
+        fail(str(exc), 130)
+    except KeyboardInterrupt:
+        click.echo("stringbot: interrupted", err=True)
+        sys.exit(130)
+    sys.exit(0)
+
+
+# each area's commands register themselves on `cli` when imported
+from . import machines, planning, winding  # noqa: E402,F401

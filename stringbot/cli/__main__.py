@@ -1,0 +1,5 @@
+"""``python -m stringbot.cli``."""
+
+from . import main
+
+main()

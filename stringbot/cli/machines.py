@@ -1,0 +1,100 @@
+"""Machine commands: machines, machines show, gcode, estimate."""
+
+
+import click
+
+from . import cli
+
+
+@cli.group("machines", invoke_without_command=True)
+@click.pass_context
+def machines_cmd(ctx):
+    """List the bundled machines (`machines show NAME` prints one with derived figures)."""
+    if ctx.invoked_subcommand is not None:
+        return
+    from firmware_protocol.machine import bundled_machines, load_machine
+
+    for name in bundled_machines():
+        m = load_machine(name)
+        kind = m["controller.dialect"] or m["controller.kind"]
+        click.echo(f"{name:<16} {kind:<10} {m.pins:>5} pins  {m['description']}")
+
+
+@machines_cmd.command("show")
+@click.argument("name")
+def machines_show_cmd(name):
+    """Print machine NAME (a bundled name or a .toml path), checked, with derived figures."""
+    from firmware_protocol.machine import load_machine
+
+    m = load_machine(name)
+    click.echo(f"# {m.path}")
+    click.echo(m.to_toml().rstrip("\n"))
+    click.echo("\n# derived")
+    for label, text in m.derived():
+        click.echo(f"# {label + ':':<15} {text}")
+
+
+def _plan_and_machine(plan, machine):
+    from firmware_protocol.machine import load_machine
+
+    from ..motion import check_plan_fits
+    from ..planner.plan_file import read_plan
+
+    m = load_machine(machine)
+    p = read_plan(plan)
+    check_plan_fits(p, m)
+    return p, m
+
+
+def _estimate_lines(est):
+    from ..motion import format_duration
+
+    return [f"{'machine time':<14} {format_duration(est.seconds)} ({est.seconds:.0f} s)",
+            f"{'ring travel':<14} {est.ring_travel_deg:.0f} deg = {est.travel_ratio:.4f} x the "
+            f"shortest-arc lower bound {est.lower_bound_deg:.0f} deg",
+            f"{'thread':<14} {est.thread_m:.1f} m (wraps round pins {est.wrap_m:.2f} m)",
+            f"{'steps':<14} {est.steps} pins hooked, {est.moves} moves"]
+
+
+@cli.command("gcode")
+@click.argument("plan", type=click.Path(path_type=str))
+@click.option("--machine", required=True, help="Machine name (see `stringbot machines`) or a .toml path.")
+@click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str),
+              help="G-code file to write (for UGS, bCNC, OctoPrint...).")
+def gcode_cmd(plan, machine, output):
+    """Write the whole winding of PLAN on MACHINE as one G-code program."""
+    import os
+
+    from .._files import check_not_same_file, check_output_path, write_atomic
+    from ..motion import dialect_for, format_duration, gcode_job
+
+    check_output_path(output, what="G-code")
+    check_not_same_file(output, plan, what="G-code", source_what="plan")
+    p, m = _plan_and_machine(plan, machine)
+    dialect_for(m)
+    text = gcode_job(p, m, plan_name=os.path.basename(plan))
+    write_atomic(output, text)
+    from ..motion import estimate
+    est = estimate(p, m)
+    click.echo(f"{len(p.sequence)} pins, {text.count(chr(10))} lines, about {format_duration(est.seconds)}, "
+               f"{est.thread_m:.1f} m of thread -> {output}")
+
+
+@cli.command("estimate")
+@click.argument("plan", type=click.Path(path_type=str))
+@click.option("--machine", required=True, help="Machine name (see `stringbot machines`) or a .toml path.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+def estimate_cmd(plan, machine, as_json):
+    """Machine time, ring travel and thread length of winding PLAN on MACHINE."""
+    import json
+
+    from ..motion import estimate
+
+    p, m = _plan_and_machine(plan, machine)
+    est = estimate(p, m)
+    if as_json:
+        click.echo(json.dumps({"plan": plan, "machine": m.name, **est.as_dict()}))
+    else:
+        click.echo(f"{'plan':<14} {plan}\n{'machine':<14} {m.name} ({m.path})")
+        for line in _estimate_lines(est):
+            click.echo(line)

@@ -1,0 +1,169 @@
+"""Planner commands: plan, render, score.
+
+Heavy modules (numpy, scipy, PIL) are imported inside the commands: startup counts.
+"""
+
+
+import click
+
+from ..errors import BadInput
+from . import cli, log
+
+
+class _Lines(click.ParamType):
+    name = "N|auto"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) or str(value).strip().lower() == "auto":
+            return value if isinstance(value, int) else "auto"
+        try:
+            return int(value)
+        except ValueError:
+            self.fail(f"{value!r} is not a whole number or 'auto'", param, ctx)
+
+
+@cli.command("plan")
+@click.argument("image", type=click.Path(dir_okay=True, path_type=str))
+@click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str),
+              help="Plan file to write (JSON).")
+@click.option("--preview", type=click.Path(path_type=str), default=None,
+              help="Preview PNG to write [default: the plan's path with .png].")
+@click.option("--method", type=click.Choice(["fitness", "greedy"]), default="fitness", show_default=True,
+              help="fitness: the paper's method; greedy: the ThreadTone baseline.")
+@click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
+@click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
+@click.option("--machine", default=None, help="Take the pin count from this machine (name or TOML path).")
+@click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
+@click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
+@click.option("--start-pin", type=int, default=0, show_default=True)
+@click.option("--size", type=int, default=401, show_default=True, help="Working size in pixels.")
+@click.option("--lines", type=_Lines(), default="auto", show_default=True,
+              help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
+@click.option("--importance", type=click.Path(path_type=str), default=None,
+              help="Mask PNG of the picture's size: white = important (weight 2).")
+@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default="decolor", show_default=True,
+              help="Colour to gray: contrast-preserving decolorization or plain luminance.")
+@click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
+@click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default=None,
+              help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "
+                   "areas), or auto: plan both, keep the higher SSIM [default: auto].")
+@click.option("--beta", type=float, default=None, help="Short-chord penalty [detail: 5].")
+@click.option("--gamma", type=float, default=None, help="Edge-direction penalty [detail: 10].")
+@click.option("-T", "--sharpness", "T", type=float, default=None,
+              help="T of tanh(f / T): larger spreads chords out [detail: 30].")
+@click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
+@click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
+@click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
+def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame, crop, start_pin, size, lines,
+             importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache):
+    """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
+    import os
+
+    from .._files import check_not_same_file, check_output_path, write_atomic
+    from ..planner.build import plan_picture
+    from ..planner.image import parse_crop
+    from ..planner.plan_file import write_plan
+    from ..planner.render import draw, png_bytes
+
+    mach = None
+    if machine is not None:
+        from firmware_protocol.machine import load_machine
+
+        mach = load_machine(machine)
+        ring = mach.pins
+        if pins is not None and pins != ring:
+            raise BadInput(f"--pins {pins} differs from machine {machine!r} with {ring} pins; give one of them")
+        pins = ring
+    pins = 300 if pins is None else pins
+    preview = preview or os.path.splitext(output)[0] + ".png"
+    check_output_path(output, what="plan")
+    check_output_path(preview, what="preview")
+    for out, what in ((output, "plan"), (preview, "preview")):
+        for src, name in ((image, "picture"), (importance, "mask")):
+            if src:
+                check_not_same_file(out, src, what=what, source_what=name)
+    check_not_same_file(preview, output, what="preview", source_what="plan")
+    if lines != "auto" and lines <= 0:
+        raise BadInput(f"--lines {lines}; expected a positive number or auto")
+    p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
+                     lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
+                     importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma, T=T,
+                     epsilon=epsilon, iterations=iterations, cache=not no_cache)
+    if machine is not None:
+        p.parameters["machine"] = machine
+    png = png_bytes(draw(p, size=1001))
+    write_plan(p, output)
+    write_atomic(preview, png)
+    s = p.stats
+    kind = "disconnected " if not p.connected else ""
+    style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
+    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
+               f"diameters, {s['seconds']:.2f} s -> {output} (preview {preview})")
+    if mach is not None:
+        if not p.connected:
+            click.echo(f"machine {mach.name}: a disconnected chord set cannot be wound; no machine-time estimate")
+        else:
+            from ..motion import estimate, format_duration
+
+            est = estimate(p, mach)
+            click.echo(f"machine {mach.name}: about {format_duration(est.seconds)} of winding, "
+                       f"{est.thread_m:.1f} m of thread")
+
+
+@cli.command("render")
+@click.argument("plan", type=click.Path(path_type=str))
+@click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str), help="PNG to write.")
+@click.option("--size", type=int, default=1001, show_default=True, help="Side of the drawing in pixels.")
+def render_cmd(plan, output, size):
+    """Draw PLAN as black 1-pixel threads on white."""
+    from .._files import check_not_same_file, check_output_path, write_atomic
+    from ..planner.plan_file import read_plan
+    from ..planner.render import draw, png_bytes
+
+    if not 16 <= size <= 8001:
+        raise BadInput(f"--size {size}; expected 16..8001 pixels")
+    check_output_path(output, what="drawing")
+    check_not_same_file(output, plan, what="drawing", source_what="plan")
+    p = read_plan(plan)
+    write_atomic(output, png_bytes(draw(p, size=size)))
+    click.echo(f"{len(p.chord_list())} chords drawn at {size} x {size} -> {output}")
+
+
+@cli.command("score")
+@click.argument("plan", type=click.Path(path_type=str))
+@click.argument("image", required=False, type=click.Path(path_type=str))
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+def score_cmd(plan, image, as_json):
+    """SSIM of PLAN against IMAGE (default: the plan's source), as in the paper's section 4.1."""
+    import json
+    import os
+
+    from ..planner.image import read_picture
+    from ..planner.plan_file import read_plan
+    from ..planner.render import BLUR_SIGMA, SCORE_SIZE, score
+
+    p = read_plan(plan)
+    if image is None:
+        image = p.source.get("path")
+        if not image:
+            raise BadInput(f"plan {plan!r} names no source picture; expected an IMAGE argument")
+        beside = os.path.join(os.path.dirname(plan), image)
+        if not os.path.isabs(image) and not os.path.exists(image) and os.path.exists(beside):
+            image = beside  # a relative source path, taken from the plan's folder
+    gray = p.parameters.get("gray_requested", "decolor")
+    weights = p.parameters.get("gray_weights")
+    if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):
+        weights = None
+    pic = read_picture(image, size=SCORE_SIZE, crop=p.crop, weights=weights,
+                       gray=gray if gray in ("decolor", "luminance") else "decolor")
+    if p.source.get("sha256") and p.source["sha256"] != pic.source["sha256"]:
+        log.warning("%s is not the picture the plan was made from (sha256 differs)", image)
+    r = score(p, pic.gray)
+    if as_json:
+        click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "connected": p.connected,
+                               "lines": r["lines"], "ssim": round(r["ssim"], 4),
+                               "ssim_blurred": round(r["ssim_blurred"], 4), "blur_sigma": BLUR_SIGMA}))
+    else:
+        click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} "
+                   f"{p.method}{'' if p.connected else ' (disconnected)'}\n{'lines':<10} {r['lines']}\n"
+                   f"{'SSIM':<10} {r['ssim']:.4f}\n{'blurred':<10} {r['ssim_blurred']:.4f}")
