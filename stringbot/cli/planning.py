@@ -97,8 +97,11 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
-    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
-               f"diameters, {s['seconds']:.2f} s -> {output} (preview {preview})")
+    thread = f"{s['thread_diameters']:.1f} diameters"
+    if mach is not None:      # the frame's size is known: metres (chords only; the estimate adds the wraps)
+        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
+               f"{s['seconds']:.2f} s -> {output} (preview {preview})")
     if mach is not None:
         if not p.connected:
             click.echo(f"machine {mach.name}: a disconnected chord set cannot be wound; no machine-time estimate")
