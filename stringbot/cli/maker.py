@@ -127,3 +127,40 @@ def pins_cmd(plan, output, diameter_mm, machine):
     _emit(output, text, what="pin list", source=plan)
     click.echo(f"{len(pl.rows)} steps -> {output}" + (f"; thread {dict(pl.header)['thread']}" if size else ""),
                err=output == "-")
+
+
+@cli.command("animate", epilog="""\b
+Examples:
+  stringbot animate camera.json -o camera-wind.gif
+  stringbot animate camera.json -o camera-wind.gif --frames 200 --size 600 --fps 20
+  stringbot animate camera.json -o camera-wind.mp4      (needs: pip install imageio-ffmpeg)
+""")
+@click.argument("plan", type=click.Path(dir_okay=True, path_type=str))
+@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False, path_type=str),
+              help="Animation to write: .gif (Pillow) or .mp4 (imageio's ffmpeg plugin).")
+@click.option("--frames", type=click.IntRange(1, 2000), default=100, show_default=True,
+              help="Frames, the painting growing evenly from the first chord to the last.")
+@click.option("--size", type=click.IntRange(64, 2000), default=400, show_default=True, help="Side in pixels.")
+@click.option("--fps", type=click.FloatRange(1, 60), default=10.0, show_default=True, help="Frames per second.")
+def animate_cmd(plan, output, frames, size, fps):
+    """Animate PLAN: the painting growing in winding order, newest thread in red."""
+    from ..planner.frames import Mp4Unavailable, gif_bytes, growth_frames, mp4_bytes
+    from ..planner.plan_file import read_plan
+
+    ext = os.path.splitext(output)[1].lower()
+    if output == "-" or ext not in (".gif", ".mp4"):
+        raise BadInput(f"-o {output!r}; expected a file name ending in .gif or .mp4")
+    if ext == ".mp4" and size % 2:
+        raise BadInput(f"--size {size}; expected an even number of pixels for MP4")
+    from .._files import check_not_same_file, check_output_path
+    check_output_path(output, what="animation")
+    check_not_same_file(output, plan, what="animation", source_what="plan")
+    p = read_plan(plan)
+    images = [f for f, _ in growth_frames(p, frames=frames, size=size)]
+    try:
+        data = gif_bytes(images, fps=fps) if ext == ".gif" else mp4_bytes(images, fps=fps)
+    except Mp4Unavailable as exc:
+        raise BadInput(str(exc)) from None
+    _emit(output, data, what="animation", source=plan)
+    click.echo(f"{len(images)} frames of {len(p.chord_list())} chords, {len(images) / fps:.1f} s at {fps:g} fps "
+               f"-> {output}")
