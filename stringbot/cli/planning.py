@@ -85,10 +85,18 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
     check_not_same_file(preview, output, what="preview", source_what="plan")
     if lines != "auto" and lines <= 0:
         raise BadInput(f"--lines {lines}; expected a positive number or auto")
-    p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
-                     lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
-                     importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma, T=T,
-                     epsilon=epsilon, iterations=iterations, cache=not no_cache)
+    from ..planner.progress import reporting
+    from .progress import PlanProgress
+
+    shown = PlanProgress().start()
+    try:
+        with reporting(shown):
+            p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
+                             lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
+                             importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
+                             T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache)
+    finally:
+        shown.close()
     if machine is not None:
         p.parameters["machine"] = machine
     png = png_bytes(draw(p, size=1001))
@@ -97,8 +105,11 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
-    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
-               f"diameters, {s['seconds']:.2f} s -> {output} (preview {preview})")
+    thread = f"{s['thread_diameters']:.1f} diameters"
+    if mach is not None:      # the frame's size is known: metres (chords only; the estimate adds the wraps)
+        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
+               f"{s['seconds']:.2f} s -> {output} (preview {preview})")
     if mach is not None:
         if not p.connected:
             click.echo(f"machine {mach.name}: a disconnected chord set cannot be wound; no machine-time estimate")
