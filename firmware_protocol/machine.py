@@ -89,6 +89,9 @@ SCHEMA = {
         "out_mm": _Key(float, lo=-1000.0, hi=1000.0),
         "feed_mm_per_min": _Key(float, 3000.0, lo=0.0, hi=1e6, lo_open=True),
         "accel_mm_per_s2": _Key(float, 500.0, lo=0.0, hi=1e6, lo_open=True),
+        "steps_per_mm": _Key(float, None, lo=0.0, hi=1e6, lo_open=True,
+                             doc="the firmware's steps per mm of the head axis (GRBL $101 on Y); "
+                                 "the host allows one step of it when it compares positions"),
     },
     "controller": {
         "kind": _Key(str, choices=("gcode", "dynamixel")),

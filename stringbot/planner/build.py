@@ -11,8 +11,9 @@ Methods
     fitness is then close to its weighted mean darkness and next to no error
     is diffused, so large flat dark areas are filled).  ``auto`` (the
     default) plans both and keeps the drawing that scores higher by the
-    paper's own measure (section 4.1: SSIM plain plus blurred, see
-    :func:`stringbot.planner.render.score_chords`).  Giving beta, gamma or T
+    paper's own measure (section 4.1: SSIM plain plus blurred, with both the
+    Gaussian and the uniform window, summed, so that no one variant decides;
+    see :mod:`stringbot.planner.scoring`).  Giving beta, gamma or T
     means ``detail`` with those values.
 ``greedy``
     The ThreadTone baseline (see :mod:`stringbot.planner.greedy`).
@@ -209,7 +210,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         candidates = style_candidates(style, beta=beta, gamma=gamma, T=T)
         ref = None
         if len(candidates) > 1:
-            from .render import SCORE_SIZE
+            from .scoring import SCORE_SIZE
 
             ref = (reference.gray if reference is not None else pic.gray if picture is not None else
                    read_picture(path, size=SCORE_SIZE, crop=pic.crop, gray=gray, weights=pic.weights).gray)
@@ -252,10 +253,11 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
     list of dict
         Per candidate: ``style``, ``knobs``, ``seq`` (connected) or ``chords``
         (disconnected, else None), ``stats``, ``scores`` and ``rank``
-        (SSIM plus blurred SSIM against the picture; 0 for a single candidate).
+        (the sum of the four SSIM figures against the picture, both windows plain
+        and blurred; 0 for a single candidate).
     """
     from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
-    from .render import score_chords
+    from .scoring import SSIM_KEYS, score_chords
     from .sampling import fitness_table, sample_connected, sample_disconnected
 
     inv = 255.0 - pic.gray
@@ -288,8 +290,8 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
             report(f"scoring ({name})")
             drawn = chords if disconnected else list(zip(seq[:-1], seq[1:]))
             sc = score_chords(drawn, space.pin_xy, pic.gray if reference is None else reference, frame=space.frame)
-            run["scores"] = {"ssim": round(sc["ssim"], 4), "ssim_blurred": round(sc["ssim_blurred"], 4)}
-            run["rank"] = sc["ssim"] + sc["ssim_blurred"]
+            run["scores"] = {k: round(sc[k], 4) for k in SSIM_KEYS}
+            run["rank"] = sum(sc[k] for k in SSIM_KEYS)
             log.info("style %s: SSIM %.4f, blurred %.4f", name, sc["ssim"], sc["ssim_blurred"])
         runs.append(run)
     return runs
