@@ -273,7 +273,7 @@ def _axis_order(machine):
     dialect = machine["controller.dialect"]
     if dialect == "grbl":
         return "XYZ"
-    if dialect == "grblhal":
+    if dialect in ("grblhal", "fluidnc"):
         return "XYZA" if "A" in (machine["controller.ring_axis"], machine["controller.head_axis"]) \
             else "XYZ"
     return "XYZA"
@@ -283,7 +283,7 @@ def gcode_machine_link(port, machine, **options):
     """The step-level link for a G-code ``machine`` over an open ``port``."""
     sync = options.pop("sync", "move")
     dialect = machine["controller.dialect"]
-    if dialect in ("grbl", "grblhal"):
+    if dialect in ("grbl", "grblhal", "fluidnc"):
         proto = GrblLink(port, dialect, **options)
     else:
         proto = MarlinLink(port, **options)
