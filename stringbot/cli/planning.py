@@ -33,9 +33,11 @@ class _Lines(click.ParamType):
 @click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
 @click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
 @click.option("--machine", default=None, help="Take the pin count from this machine (name or TOML path).")
-@click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
+@click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True,
+              help="Pins on a ring, or along the border of a square (a square is wound by hand: stringbot pins).")
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
-@click.option("--start-pin", type=int, default=0, show_default=True)
+@click.option("--start-pin", type=int, default=0, show_default=True,
+              help="First pin of the sequence (pin 0 at the top, numbered clockwise).")
 @click.option("--size", type=int, default=401, show_default=True, help="Working size in pixels.")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
               help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
@@ -213,4 +215,7 @@ def score_cmd(plan, image, as_json):
                    f"{'SSIM':<10} {r['ssim']:.4f}   (Gaussian 11x11 window; scikit-image default 7x7: "
                    f"{r['ssim_uniform']:.4f})\n"
                    f"{'blurred':<10} {r['ssim_blurred']:.4f}   (7x7: {r['ssim_uniform_blurred']:.4f})\n"
-                   f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)")
+                   f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)\n"
+                   "SSIM compares the drawing with the picture, both 201 px (the paper's section 4.1): 1 is "
+                   "the picture itself, 0 nothing in common; higher is better. 'blurred' compares them after "
+                   "a blur (sigma 2 px), as the eye sees the painting from afar.")
