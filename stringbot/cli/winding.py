@@ -122,7 +122,10 @@ def _fmt_s(seconds):
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
 @click.option("--faults", default=None, help="Faults to inject: kind@N,... (disconnect, reset, power, "
                                              "garble, drop-ok, error; N counts received lines).")
-def simulate(machine_name, pty_path, record, realtime, faults):
+@click.option("--set", "settings", multiple=True, metavar="SETTING",
+              help="Start the firmware with this setting instead of the machine file's (repeatable): "
+                   "'$100=40' (GRBL, grblHAL), 'M92 A40' (Marlin), 'ring:Drive Mode=1' (Dynamixel ID:ITEM=VALUE).")
+def simulate(machine_name, pty_path, record, realtime, faults, settings):
     """Serve the simulated machine on a pseudo-terminal until Ctrl-C."""
     from firmware_protocol.emulators.factory import build_emulator
     from firmware_protocol.machine import load_machine
@@ -133,8 +136,10 @@ def simulate(machine_name, pty_path, record, realtime, faults):
     except PtyPathError as exc:
         raise BadInput(f"--pty: {exc}") from None
     try:
-        emulator, _world = build_emulator(machine, record=record, faults=faults)
+        emulator, _world = build_emulator(machine, record=record, faults=faults, settings=settings)
     except ValueError as exc:
+        if str(exc).startswith("--set "):
+            raise BadInput(str(exc)) from None
         raise BadInput(f"--faults {faults!r}: {exc}") from None
     except OSError as exc:
         raise BadInput(f"--record {record!r}: {exc.strerror or exc}") from None
