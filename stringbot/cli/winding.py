@@ -5,6 +5,7 @@ import sys
 import click
 
 from ..errors import BadInput, Interrupted, MachineFailure
+from ..links.settings_check import SettingsDisagree
 from . import cli
 
 
@@ -37,8 +38,10 @@ def _resume_command(plan, machine_name, port, journal):
               help="Show the journal's state and exit (without --port: the real winding's journal if any).")
 @click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
 @click.option("--realtime", is_flag=True, help="Dry run: the simulated machine moves at real speed.")
+@click.option("--no-check", "no_check", is_flag=True,
+              help="Do not compare the firmware's settings with the machine file before the first move.")
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
-         faults, realtime):
+         faults, realtime, no_check):
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
     from ..winding import dry_run_problem, load_job, wind_plan
     from ..winding import resume as resuming
@@ -84,7 +87,12 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
                                           confirm=None if yes else confirm,
                                           choose=None if yes else choose, progress=progress)
         else:
-            result = wind_plan(job, confirm=None if yes else confirm, progress=progress)
+            result = wind_plan(job, confirm=None if yes else confirm, progress=progress, check=not no_check)
+    except SettingsDisagree as exc:     # nothing moved: no resume to offer
+        from .checking import refusal_lines
+        for line in refusal_lines(exc, machine_name, port):
+            click.echo(f"stringbot: error: {line}", err=True)
+        sys.exit(1)
     except (Interrupted, MachineFailure) as exc:
         if bar is not None:
             bar.__exit__(None, None, None)

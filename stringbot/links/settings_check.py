@@ -74,6 +74,8 @@ def check_link(link, machine):
     """Identify (if not yet), read the settings, compare them with ``machine``; -> Report."""
     report = compare(machine, read_firmware(link, machine))
     report.firmware = f"{link.info.name} {link.info.version}".strip() if link.info else "?"
+    log.info("firmware settings: %d compared with the machine file, %d disagree", len(report.rows),
+             len(report.disagreements))
     for row in report.disagreements:
         log.info("settings: %s", _disagreement(row))
     return report
