@@ -62,6 +62,46 @@ def simulator(tmp_path):
         sim.stop()
 
 
+CASES = [
+    ("grbl-ring", "$100=40", "$100 X steps/unit (ring) is 40", "$100=44.4444"),
+    ("grblhal-ring", "$22=0", "$22 homing cycle is 0", "$22=1"),
+    ("marlin-ring", "M92 A40", "M92 A (ring steps/deg) is 40", "M92 A44.4444"),
+    ("dynamixel-ring", "ring:Drive Mode=1", "ring (id 1) Drive Mode (10) is 1 (Reverse Mode)", "1:Drive Mode=0"),
+]
+
+
+@pytest.mark.parametrize("machine, setting, named, fix", CASES, ids=[c[0] for c in CASES])
+def test_mis_set_machine_is_named_refused_then_fixed_and_winds_exactly(tmp_path, capsys, simulator,
+                                                                       machine, setting, named, fix):
+    plan = small_plan(n=8, seed=5)
+    write_plan(plan, tmp_path / "plan.json")
+    journal = tmp_path / "plan.journal"
+    sim = simulator(machine, setting)
+    port = str(sim.pty)
+
+    code, out, err = run(["machines", "check", machine, "--port", port], capsys)
+    assert code == 1 and f"  {fix}" in out.splitlines()
+
+    wind = ["wind", str(tmp_path / "plan.json"), "--machine", machine, "--port", port, "--yes",
+            "--journal", str(journal)]
+    code, out, err = run(wind, capsys)
+    assert code == 1, err
+    lines = error_lines(err)
+    assert len(lines) == 2 and "Traceback" not in err
+    assert named in lines[0] and f"send {fix}" in lines[0]
+    assert "nothing was moved or wound" in lines[1] and "--no-check" in lines[1] and "--apply" in lines[1]
+    assert "resume" not in err
+    assert read_journal(journal).done == []
+    assert sim.world() == ([], [])
+
+    code, out, err = run(["machines", "check", machine, "--port", port, "--apply", "--yes"], capsys)
+    assert code == 0, err
+    code, out, err = run(wind, capsys)
+    assert code == 0, err
+    sim.stop()
+    assert sim.world() == (plan.sequence, [])
+
+
 def test_wind_refuses_a_mis_set_machine_before_anything_moves(tmp_path, capsys, simulator):
     write_plan(small_plan(n=8, seed=5), tmp_path / "plan.json")
     journal = tmp_path / "plan.journal"
