@@ -90,7 +90,9 @@ SCHEMA = {
         "feed_mm_per_min": _Key(float, 3000.0, lo=0.0, hi=1e6, lo_open=True),
         "accel_mm_per_s2": _Key(float, 500.0, lo=0.0, hi=1e6, lo_open=True),
         "steps_per_mm": _Key(float, None, lo=0.0, hi=1e6, lo_open=True,
-                             doc="the firmware's steps per mm of the head axis; `machines check` compares it"),
+                             doc="the firmware's steps per mm of the head axis (GRBL $101 on Y); "
+                                 "`machines check` compares it; the host allows one step of it when it "
+                                 "compares positions"),
     },
     "controller": {
         "kind": _Key(str, choices=("gcode", "dynamixel")),

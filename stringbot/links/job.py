@@ -11,6 +11,7 @@ import re
 import time
 
 from ..motion import dialect_for
+from ..motion.positions import position_tolerance
 from .base import where_of
 from .grbl import GrblLink
 from .marlin import MarlinLink
@@ -57,7 +58,34 @@ class GcodeMachineLink:
         return self.proto.position_lost
 
     def identify(self):
-        return self.proto.identify()
+        info = self.proto.identify()
+        self._read_settings()
+        return info
+
+    def _read_settings(self):
+        """GRBL/grblHAL: read ``$$`` once (steps per unit for the position tolerance)."""
+        if isinstance(self.proto, GrblLink) and self.proto.settings is None:
+            self.proto.read_settings()
+
+    def _axis_index(self, letter):
+        names = self._axis_names()
+        return names.index(letter) if letter in names else None
+
+    @property
+    def position_tolerance(self):
+        """``(ring_deg, head_mm)``: how far a reported position may be from a point reached: one
+        step of each axis (the firmware's ``$100``.. when read, else the machine file's) plus
+        print and float32 rounding (see :mod:`stringbot.motion.positions`)."""
+        m = self.machine
+        steps = {}
+        settings = getattr(self.proto, "settings", None) or {}
+        for role, key in (("ring", "controller.ring_axis"), ("head", "controller.head_axis")):
+            i = self._axis_index(m[key])
+            value = settings.get(100 + i) if i is not None else None
+            steps[role] = value if value else None
+        decimals = 3 if isinstance(self.proto, GrblLink) else 2
+        return position_tolerance(m, ring_steps=steps["ring"], head_steps=steps["head"],
+                                  decimals=decimals)
 
     def prepare(self, *, home, resume_at=None):
         """Alarms, homing where the machine file says so, modal state."""
@@ -152,12 +180,15 @@ class GcodeMachineLink:
             elif line.startswith("ok") or line.startswith("error"):
                 return offset
 
-    def _pick(self, pos):
+    def _axis_names(self):
         names = self.axes
         for line in getattr(self.proto.info, "lines", ()) or ():
             if line.startswith("[AXS:"):            # grblHAL names its axes in $I
                 names = line.rstrip("]").split(":")[-1]
-        values = dict(zip(names, pos))
+        return names
+
+    def _pick(self, pos):
+        values = dict(zip(self._axis_names(), pos))
         ring = values.get(self.machine["controller.ring_axis"])
         head = values.get(self.machine["controller.head_axis"])
         if ring is None or head is None:
@@ -179,6 +210,7 @@ class GcodeMachineLink:
         if grbl:
             self._settle(timeout)
         info = proto.identify()
+        self._read_settings()
         lost = proto.position_lost or any(_started(x) for x in list(said) + list(info.lines))
         if grbl and proto.status().state == "Alarm":
             lost = True

@@ -33,6 +33,7 @@ import math
 
 from ..errors import BadInput, MachineFailure
 from ..links import open_link
+from ..motion.positions import position_tolerance
 from .journal import Journal, read_journal
 from .loop import Winder
 
@@ -40,7 +41,7 @@ __all__ = ["resume_plan", "status_lines", "locate"]
 
 log = logging.getLogger(__name__)
 
-TOL = 0.01       # degrees / mm: positions come back with 3 decimals
+TOL = 0.01       # the least tolerance (degrees / mm) whatever the machine
 
 
 def _near(a, b, tol=(TOL, TOL)):
@@ -60,12 +61,16 @@ def _on_segment(p, a, b, tol=(TOL, TOL)):
     return _near(p, q, tol)
 
 
-def tolerance(link):
-    """(ring_deg, head_mm) within which ``locate`` accepts a position: TOL, or a link's
-    ``position_tolerance`` (a servo's arrival tolerance) where that is larger."""
+def tolerance(link, machine=None):
+    """(ring_deg, head_mm) within which ``locate`` accepts a position: the link's
+    ``position_tolerance`` (one step of each axis plus rounding for a G-code link, the arrival
+    tolerance for a servo), else the machine file's steps (see
+    :func:`stringbot.motion.positions.position_tolerance`); never below :data:`TOL`."""
     own = getattr(link, "position_tolerance", None)
     if own is None:
-        return (TOL, TOL)
+        if machine is None:
+            return (TOL, TOL)
+        own = position_tolerance(machine)
     if isinstance(own, (int, float)):
         own = (own, own)
     return (max(TOL, float(own[0])), max(TOL, float(own[1])))
