@@ -36,13 +36,14 @@ class _Lines(click.ParamType):
 @click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
 @click.option("--start-pin", type=int, default=0, show_default=True)
-@click.option("--size", type=int, default=401, show_default=True, help="Working size in pixels.")
+@click.option("--size", type=int, default=None, help="Working size in pixels [default: 401; greedy: 1001, ThreadTone's].")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
               help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
-@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default="decolor", show_default=True,
-              help="Colour to gray: contrast-preserving decolorization or plain luminance.")
+@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
+              help="Colour to gray: contrast-preserving decolorization or plain luminance "
+                   "[default: decolor; greedy: luminance, ThreadTone's].")
 @click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
 @click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default=None,
               help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "

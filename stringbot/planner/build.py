@@ -26,7 +26,7 @@ import time
 import numpy as np
 
 from ..errors import BadInput
-from .chords import chord_pixels, chord_space, pixel_chords
+from .chords import chord_space, pixel_chords
 from .image import read_mask, read_picture
 from .plan_file import Plan
 
@@ -41,6 +41,8 @@ DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, 
             "iterations": 25, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
+#: ThreadTone's working size: a picture of radius 500 px.
+GREEDY_SIZE = 1001
 MIN_SIZE, MAX_SIZE = 32, 2001
 MAX_LINES = 100_000
 METHODS = ("fitness", "greedy")
@@ -123,8 +125,8 @@ def thread_length(pin_xy, chords):
     return float(np.linalg.norm(pin_xy[c[:, 0]] - pin_xy[c[:, 1]], axis=1).sum())
 
 
-def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="auto", start_pin=0,
-                 method="fitness", disconnected=False, importance=None, gray="decolor", style=None,
+def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines="auto", start_pin=0,
+                 method="fitness", disconnected=False, importance=None, gray=None, style=None,
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
                  picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"]):
@@ -136,7 +138,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         The picture.
     pins, frame, size, crop, lines, start_pin, method, disconnected, importance, gray,
     alpha, epsilon, iterations
-        The knobs (see ``stringbot plan --help`` and docs/planner.md).
+        The knobs (see ``stringbot plan --help`` and docs/planner.md).  ``size``
+        None: 1001 for greedy (ThreadTone's own), else 401; ``gray`` None:
+        luminance for greedy (ThreadTone's), else decolor.
     style : {"auto", "detail", "fill"} or None
         Fitness only: which setting of beta, gamma and T (see the module
         notes); None is ``auto``.
@@ -163,6 +167,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         method's own figures.
     """
     t0 = time.perf_counter()
+    if size is None:  # ThreadTone works on a 1001-px picture (imgRadius 500), the paper on 401 px
+        size = GREEDY_SIZE if method == "greedy" else DEFAULTS["size"]
+    if gray is None:  # ThreadTone grays by luminance (cv2.COLOR_BGR2GRAY), the paper by decolorization
+        gray = "luminance" if method == "greedy" else "decolor"
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin, method=method,
                 alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations, style=style)
     if disconnected and method != "fitness":
@@ -179,15 +187,11 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     mask = frame_mask(size, frame)
     k = auto_lines(pic.gray, mask) if lines == "auto" else int(lines)
     space = chord_space(pins, frame)
-    if method == "greedy":
-        indptr, indices = chord_pixels(space, size, cache=cache)
-        nnz = len(indices)
-    else:
+    stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m)}
+    if method == "fitness":
         rowptr, chords_of_pixel = pixel_chords(space, size, cache=cache)
-        nnz = len(chords_of_pixel)
+        stats["pixels_per_chord"] = round(float(len(chords_of_pixel) / max(space.m, 1)), 2)
     t_chords = time.perf_counter()
-    stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m),
-             "pixels_per_chord": round(float(nnz / max(space.m, 1)), 2)}
     params = {"pins": pins, "frame": frame, "size": size, "crop": pic.crop, "lines": lines, "lines_target": k,
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
               "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
@@ -200,7 +204,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
               "min_loop": DEFAULTS["greedy_min_loop"], "reference_radius": greedy_reference_radius}
         scale = (size - 1) / 2 / greedy_reference_radius if greedy_reference_radius else 1.0
         params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
-        seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin, **gk)
+        seq = greedy_sequence(space, size, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
         params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style or "auto")
         candidates = style_candidates(style, beta=beta, gamma=gamma, T=T)
