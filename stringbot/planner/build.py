@@ -32,7 +32,7 @@ from .plan_file import Plan
 
 log = logging.getLogger(__name__)
 
-__all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "DEFAULTS", "FILL", "STYLES",
+__all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "thread_model", "DEFAULTS", "FILL", "STYLES",
            "MAX_PINS"]
 
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").  beta, gamma and T are
@@ -89,6 +89,21 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
                        "expected --style detail (or no --style) with them")
 
 
+def thread_model(diameter_mm=None, thread_mm=None):
+    """The :class:`~stringbot.planner.thread.ThreadModel` of the options; BadInput naming the one out of range."""
+    from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
+
+    d = DEFAULT_DIAMETER_MM if diameter_mm is None else diameter_mm
+    t = DEFAULT_THREAD_MM if thread_mm is None else thread_mm
+    for name, v, top in (("--diameter-mm", d, 100_000.0), ("--thread-mm", t, 100.0)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= top):
+            raise BadInput(f"{name} {v:g}; expected millimetres, a number > 0 and <= {top:g}")
+    if t * 20 > d:
+        raise BadInput(f"--thread-mm {t:g} is more than a 20th of --diameter-mm {d:g}; "
+                       "expected a thread much thinner than the frame")
+    return ThreadModel(diameter_mm=float(d), thread_mm=float(t))
+
+
 def style_candidates(style, *, beta=None, gamma=None, T=None):
     """The fitness knob settings to try.
 
@@ -129,7 +144,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                  method="fitness", disconnected=False, importance=None, gray=None, style=None,
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
-                 picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"]):
+                 picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
+                 diameter_mm=None, thread_mm=None):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -159,6 +175,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     greedy_reference_radius : float or None
         Greedy only: the picture radius at which its weight of 15 holds
         (ThreadTone's 500); None applies 15 at the working size as it is.
+    diameter_mm, thread_mm : float or None
+        The frame's diameter and the thread's width (None: 500 mm and
+        0.25 mm), recorded in the plan; the default method plans with them.
 
     Returns
     -------
@@ -173,6 +192,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         gray = "luminance" if method == "greedy" else "decolor"
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin, method=method,
                 alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations, style=style)
+    model = thread_model(diameter_mm, thread_mm)
     if disconnected and method != "fitness":
         raise BadInput("--disconnected works with --method fitness only")
     if method == "greedy" and (style is not None or any(x is not None for x in (beta, gamma, T))):
@@ -235,7 +255,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                  setup_seconds=round(t_chords - t0, 3), seconds=round(time.perf_counter() - t0, 3))
     if len(chord_list) < k:
         log.warning("%s stopped after %d of %d lines", method, len(chord_list), k)
-    return Plan(pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
+    return Plan(diameter_mm=model.diameter_mm, thread_mm=model.thread_mm,
+                pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
                 connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])])
 

@@ -40,7 +40,7 @@ log = logging.getLogger(__name__)
 __all__ = ["greedy_sequence", "line_samples", "band_pixels", "cv_half_width"]
 
 
-def line_samples(r0, c0, r1, c1, size):
+def line_samples(r0, c0, r1, c1, size, *, nearest=False):
     """ThreadTone's line points: ``int(hypot)`` points from pin to pin, each on its nearest pixel.
 
     Parameters
@@ -50,6 +50,8 @@ def line_samples(r0, c0, r1, c1, size):
     r1, c1 : ndarray of int, shape (k,)
         The other pins' pixels.
     size : int
+    nearest : bool
+        Each point on its nearest pixel; False: truncated, as ThreadTone does.
 
     Returns
     -------
@@ -65,8 +67,9 @@ def line_samples(r0, c0, r1, c1, size):
     seg = np.repeat(np.arange(len(n)), n)
     t = np.arange(int(n.sum()), dtype=np.float64) - np.repeat(starts, n)
     frac = t / np.maximum(n - 1, 1)[seg]  # linspace: both pins included
-    rr = np.floor(r0 + frac * dr[seg]).astype(np.int64)
-    cc = np.floor(c0 + frac * dc[seg]).astype(np.int64)
+    rnd = np.rint if nearest else np.floor
+    rr = rnd(r0 + frac * dr[seg]).astype(np.int64)
+    cc = rnd(c0 + frac * dc[seg]).astype(np.int64)
     np.clip(rr, 0, size - 1, out=rr)
     np.clip(cc, 0, size - 1, out=cc)
     return starts, (rr * size + cc).astype(np.int32)
@@ -122,20 +125,29 @@ def band_pixels(r0, c0, r1, c1, size, half):
 
 
 class _PinLines:
-    """Per pin, ThreadTone's line points of every chord from it, built the first time the pin is visited."""
+    """Per pin, the line points of every chord from it, built the first time the pin is visited.
 
-    def __init__(self, space, size):
-        self.space, self.size = space, size
+    ``nearest``: points on their nearest pixel (else truncated, as ThreadTone does).
+    """
+
+    def __init__(self, space, size, *, nearest=False):
+        self.space, self.size, self.nearest = space, size, nearest
         self.rc = pin_pixels(space.pin_xy, size)
         self.cache = {}
 
-    def get(self, p):
+    def get_with_counts(self, p):
+        """``(others, flat, starts, counts)``: the pins reachable from ``p`` and their chords' points."""
         if p not in self.cache:
             others = np.flatnonzero(self.space.index[p] >= 0)
             r0, c0 = self.rc[p]
-            starts, flat = line_samples(r0, c0, self.rc[others, 0], self.rc[others, 1], self.size)
-            self.cache[p] = (others, flat, starts)
+            starts, flat = line_samples(r0, c0, self.rc[others, 0], self.rc[others, 1], self.size,
+                                        nearest=self.nearest)
+            counts = np.diff(np.append(starts, len(flat))).astype(np.float32)
+            self.cache[p] = (others, flat, starts, counts)
         return self.cache[p]
+
+    def get(self, p):
+        return self.get_with_counts(p)[:3]
 
 
 def greedy_sequence(space, size, gray, mask, lines, *, start_pin=0, weight=15.0, width=3, min_loop=3,
