@@ -111,6 +111,10 @@ class GcodeFirmware(Emulator):
                 break
         return dt
 
+    def _note(self, event, **detail):
+        """A notable event for the world's record (virtual time ``t`` added)."""
+        self.world.note(event, t=round(self.now, 6), **detail)
+
     def reconnect(self):
         """Run the clock until the port is back (no-op if it is up)."""
         if self._port_back_at is not None:
@@ -137,6 +141,9 @@ class GcodeFirmware(Emulator):
             head = p[self.head_i] + self.offset[self.head_i]
             if (ring, head) != (self.world.ring_deg, self.world.head_mm):
                 self.world.move(ring, head)
+                if self.world.head_mm != head:
+                    # the head ran into its mechanical end: steps lost, the belief goes on without it
+                    self.offset[self.head_i] += self.world.head_mm - head
 
     def _physical(self):
         return [self.world.ring_deg, self.world.head_mm]
@@ -206,6 +213,7 @@ class GcodeFirmware(Emulator):
 
     def _port_down(self, power, seconds):
         log.info("fault: port down (%s) for %.2f s", power.value, seconds)
+        self._note("power off" if power is Power.OFF else "port down")
         self.power = power
         self.port_up = False
         self._out.clear()
@@ -221,6 +229,7 @@ class GcodeFirmware(Emulator):
         self._port_back_at = None
         self.power = Power.ON
         self.port_up = True
+        self._note("power on" if was_off else "port up")
         if was_off:
             self._power_on()
         log.info("port back up")
