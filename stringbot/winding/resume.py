@@ -237,7 +237,7 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
 
 def _recover_gcode(link, job, state, s, m, head_side, confirm, choose):
     """Reconnect a G-code machine and find where it stands; returns ((ring, head), position_lost)."""
-    lost = link.reconnect()
+    lost = link.reconnect().position_lost
     stop = state.last_stop
     if stop is not None and stop.get("position_lost") and not state_resumed_after(state, stop):
         lost = True
