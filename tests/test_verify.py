@@ -90,3 +90,52 @@ def test_every_move_is_checked(tmp_path):
     w.wind(0)
     assert link.checks == sum(len(s.moves) for s in steps)
     assert [x.pin for x in world.wraps] == plan.sequence
+
+
+def _grbl(tmp_path, n=4):
+    machine = load_machine("grbl-ring")
+    plan = small_plan(n=n, seed=9)
+    world = World(machine)
+    link = gcode_machine_link(EmulatorPort(GrblEmulator(machine, world=world)), machine)
+    return machine, plan, world, link
+
+
+def test_the_first_move_brings_the_head_in_alone_then_turns_the_ring(tmp_path):
+    """Left with the head OUT at a gap (ring 30.6 deg: gap 25|26), a new winding first asks where
+    the machine is, brings the head IN alone there, then turns the ring alone: no collision."""
+    from stringbot.winding import Job, wind_plan
+    from stringbot.planner import write_plan
+    machine, plan, world, link = _grbl(tmp_path)
+    link.identify()
+    link.proto.prepare(preamble=["G21", "G90"])
+    link.proto.run_lines(["G1 X30.6 F7200"], link.proto.where)
+    link.proto.run_lines(["G1 Y12 F3000"], link.proto.where)     # out through the gap
+    assert world.head_out and world.collisions == []
+    sent = []
+    write = link.proto.port.write
+    link.proto.port.write = lambda data: sent.append(bytes(data)) or write(data)
+    import stringbot.winding.session as session
+    write_plan(plan, tmp_path / "p.json")
+    job = Job(tmp_path / "p.json", machine, port="sim://", journal=tmp_path / "j")
+    opened = session.open_link
+    session.open_link = lambda *a, **k: link
+    try:
+        wind_plan(job, confirm=None)
+    finally:
+        session.open_link = opened
+    assert world.collisions == []
+    assert [w.pin for w in world.wraps] == plan.sequence
+    moves = [x for x in b"".join(sent).decode().replace("?", "").split("\n") if x.startswith("G1")]
+    assert moves[:2] == ["G1 Y0 F3000", "G1 X0 F7200"]          # the head alone, then the ring alone
+
+
+def test_a_head_out_away_from_a_gap_is_refused_before_any_move(tmp_path):
+    from stringbot.winding.approach import approach
+    from stringbot.winding.locate import tolerance
+    machine, plan, world, link = _grbl(tmp_path)
+    link.identify()
+    link.proto.prepare(preamble=["G21", "G90"])
+    link.set_position(30.0, 12.0)                 # the firmware believes: head OUT facing pin 25
+    with pytest.raises(MachineFailure, match="head OUT .* would hit a pin"):
+        approach(link, machine, (0.0, 0.0), tolerance(link))
+    assert world.moves == 0
