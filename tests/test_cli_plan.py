@@ -116,12 +116,15 @@ def test_score_table_and_json_agree(tmp_path, picture):
     assert code == 0
     code, js, _ = run("score", out, "--json")
     s = json.loads(js)
-    assert f"{s['ssim']:.4f}" in table and f"{s['ssim_blurred']:.4f}" in table
+    for key in ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred", "woven_error"):
+        assert f"{s[key]:.4f}" in table, key
+    assert 0 < s["woven_error"] < 1
     # a drawing of the picture scores better than the same drawing against its negative
     neg = tmp_path / "neg.png"
     Image.fromarray(255 - np.asarray(Image.open(picture))).save(neg)
     worse = json.loads(run("score", out, neg, "--json")[1])
     assert worse["ssim_blurred"] < s["ssim_blurred"]
+    assert worse["woven_error"] > s["woven_error"]
 
 
 def test_machine_gives_the_pin_count(tmp_path, picture):

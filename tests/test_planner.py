@@ -12,7 +12,8 @@ from stringbot.planner.chords import (chord_pixels, chord_space, line_pixels, pi
                                       pixel_chords)
 from stringbot.planner.fitness import frame_mask, solve_fitness
 from stringbot.planner.greedy import greedy_sequence
-from stringbot.planner.render import draw, score
+from stringbot.planner.render import draw
+from stringbot.planner.scoring import score
 from stringbot.planner.sampling import _Diffuser, fitness_table, sample_connected, sample_disconnected
 
 from planner_helpers import picture

@@ -6,6 +6,7 @@ import click
 
 from ..errors import BadInput, Interrupted, MachineFailure
 from . import cli
+from .progress import fmt_s as _fmt_s
 
 
 def _resume_command(plan, machine_name, port, journal):
@@ -37,8 +38,11 @@ def _resume_command(plan, machine_name, port, journal):
               help="Show the journal's state and exit (without --port: the real winding's journal if any).")
 @click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
 @click.option("--realtime", is_flag=True, help="Dry run: the simulated machine moves at real speed.")
+@click.option("--progress-every", type=click.FloatRange(min=0.1), default=None, metavar="SECONDS",
+              help="Print a progress line (step, pin, elapsed, ETA) this often instead of the bar "
+                   "[default: the bar on a terminal, otherwise a line every 30 s].")
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
-         faults, realtime):
+         faults, realtime, progress_every):
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
     from ..winding import dry_run_problem, load_job, wind_plan
     from ..winding import resume as resuming
@@ -60,22 +64,9 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     def confirm(question):
         return click.confirm(question, default=True, err=True)
 
-    bar = None
-    state = {"last": 0}
+    from .progress import WindProgress
 
-    def progress(p):
-        nonlocal bar
-        if bar is None:
-            bar = click.progressbar(length=p.total, label="winding", show_eta=False, show_pos=True,
-                                    item_show_func=lambda _x: state.get("text"), file=sys.stderr)
-            bar.__enter__()
-            bar.update(p.done - 1)
-            state["last"] = p.done - 1
-        eta = _fmt_s(p.eta_s) if p.eta_s is not None else "?"
-        state["text"] = f"pin {p.pin}  ETA {eta}  (machine time left {_fmt_s(p.machine_s)})"
-        bar.update(p.done - state["last"])
-        state["last"] = p.done
-
+    progress = WindProgress(every=progress_every).start()
     try:
         if resume or from_step is not None:
             def choose(question, choices):
@@ -86,28 +77,26 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
         else:
             result = wind_plan(job, confirm=None if yes else confirm, progress=progress)
     except (Interrupted, MachineFailure) as exc:
-        if bar is not None:
-            bar.__exit__(None, None, None)
         if port is None:
             raise  # a dry run cannot be resumed (its simulated machine ends with the command)
         raise type(exc)(f"{exc}; resume with: {again}") from None
-    if bar is not None:
-        bar.__exit__(None, None, None)
+    finally:
+        progress.close()
     problem = dry_run_problem(job)
     if problem:
         raise MachineFailure(problem)
-    wound = result.steps_done - (result.first_step - 1)
-    click.echo(f"wound {wound} pins (steps {result.first_step}-{result.steps_done} of {result.total}) "
-               f"in {_fmt_s(result.wall_s)} ({result.pins_per_second:.1f} pins/s); "
-               f"model machine time {_fmt_s(result.machine_s)}; firmware {result.firmware}; "
-               f"{result.lines_sent} lines sent; journal {result.journal}")
+    click.echo(_summary(result, job.machine))
 
 
-def _fmt_s(seconds):
-    seconds = int(round(seconds))
-    h, rest = divmod(seconds, 3600)
-    m, s = divmod(rest, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+def _summary(result, machine):
+    """What this run wound (a step the resume finished included), in one line."""
+    wound = max(0, result.steps_done - (result.first_step - 1))
+    steps = (f"steps {result.first_step}-{result.steps_done} of {result.total}" if wound
+             else f"all {result.total} steps were already done")
+    sent = "commands" if machine["controller.kind"] == "dynamixel" else "lines"
+    return (f"wound {wound} pins ({steps}) in {_fmt_s(result.wall_s)} ({result.pins_per_second:.1f} pins/s); "
+            f"model machine time {_fmt_s(result.machine_s)}; firmware {result.firmware}; "
+            f"{result.lines_sent} {sent} sent; journal {result.journal}")
 
 # == simulate command ==
 

@@ -11,8 +11,9 @@ Methods
     fitness is then close to its weighted mean darkness and next to no error
     is diffused, so large flat dark areas are filled).  ``auto`` (the
     default) plans both and keeps the drawing that scores higher by the
-    paper's own measure (section 4.1: SSIM plain plus blurred, see
-    :func:`stringbot.planner.render.score_chords`).  Giving beta, gamma or T
+    paper's own measure (section 4.1: SSIM plain plus blurred, with both the
+    Gaussian and the uniform window, summed, so that no one variant decides;
+    see :mod:`stringbot.planner.scoring`).  Giving beta, gamma or T
     means ``detail`` with those values.
 ``greedy``
     The ThreadTone baseline (see :mod:`stringbot.planner.greedy`).
@@ -28,6 +29,7 @@ from ..errors import BadInput
 from .chords import chord_pixels, chord_space, pixel_chords
 from .image import read_mask, read_picture
 from .plan_file import Plan
+from .progress import report
 
 log = logging.getLogger(__name__)
 
@@ -168,6 +170,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         raise BadInput("--disconnected works with --method fitness only")
     if method == "greedy" and (style is not None or any(x is not None for x in (beta, gamma, T))):
         raise BadInput("--style, --beta, --gamma and -T are knobs of --method fitness; greedy has none of them")
+    report("reading the picture")
     pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
     weights = None
     if importance is not None:
@@ -178,6 +181,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     mask = frame_mask(size, frame)
     k = auto_lines(pic.gray, mask) if lines == "auto" else int(lines)
     space = chord_space(pins, frame)
+    report("chords")
     if method == "greedy":
         indptr, indices = chord_pixels(space, size, cache=cache)
         nnz = len(indices)
@@ -199,13 +203,14 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
               "min_loop": DEFAULTS["greedy_min_loop"], "reference_radius": greedy_reference_radius}
         scale = (size - 1) / 2 / greedy_reference_radius if greedy_reference_radius else 1.0
         params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
+        report("greedy")
         seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
         params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style or "auto")
         candidates = style_candidates(style, beta=beta, gamma=gamma, T=T)
         ref = None
         if len(candidates) > 1:
-            from .render import SCORE_SIZE
+            from .scoring import SCORE_SIZE
 
             ref = (reference.gray if reference is not None else pic.gray if picture is not None else
                    read_picture(path, size=SCORE_SIZE, crop=pic.crop, gray=gray, weights=pic.weights).gray)
@@ -248,10 +253,11 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
     list of dict
         Per candidate: ``style``, ``knobs``, ``seq`` (connected) or ``chords``
         (disconnected, else None), ``stats``, ``scores`` and ``rank``
-        (SSIM plus blurred SSIM against the picture; 0 for a single candidate).
+        (the sum of the four SSIM figures against the picture, both windows plain
+        and blurred; 0 for a single candidate).
     """
     from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
-    from .render import score_chords
+    from .scoring import SSIM_KEYS, score_chords
     from .sampling import fitness_table, sample_connected, sample_disconnected
 
     inv = 255.0 - pic.gray
@@ -266,10 +272,12 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
     runs = []
     for name, knobs in candidates:
         t = time.perf_counter()
+        report(f"solving ({name})")
         v = chord_weights(space, d, beta=knobs["beta"], gamma=knobs["gamma"])
         f, info = solve_fitness(rowptr, chords_of_pixel, b, w, v, iterations=iterations)
         t_solve = round(time.perf_counter() - t, 3)
         table = fitness_table(space, f, T=knobs["T"])
+        report(f"sampling ({name})")
         if disconnected:
             chords, seq = sample_disconnected(space, table, k, epsilon=epsilon), []
         else:
@@ -279,10 +287,11 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
                          "solve_seconds": t_solve,
                          "fitness_min": round(float(f.min()), 4), "fitness_max": round(float(f.max()), 4)}}
         if len(candidates) > 1:
+            report(f"scoring ({name})")
             drawn = chords if disconnected else list(zip(seq[:-1], seq[1:]))
             sc = score_chords(drawn, space.pin_xy, pic.gray if reference is None else reference, frame=space.frame)
-            run["scores"] = {"ssim": round(sc["ssim"], 4), "ssim_blurred": round(sc["ssim_blurred"], 4)}
-            run["rank"] = sc["ssim"] + sc["ssim_blurred"]
+            run["scores"] = {k: round(sc[k], 4) for k in SSIM_KEYS}
+            run["rank"] = sum(sc[k] for k in SSIM_KEYS)
             log.info("style %s: SSIM %.4f, blurred %.4f", name, sc["ssim"], sc["ssim_blurred"])
         runs.append(run)
     return runs
