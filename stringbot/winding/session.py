@@ -14,7 +14,9 @@ from ..errors import BadInput
 from ..links import open_link, sim_url
 from ..motion import hook_steps
 from ..planner import read_plan
+from .approach import approach
 from .journal import Journal, journal_path_for, read_journal
+from .locate import tolerance
 from .loop import Winder
 
 __all__ = ["wind_plan", "Job", "load_job", "dry_run_problem"]
@@ -155,6 +157,9 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None):
         first = job.steps[0]
         winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
                    "then go on?")
+        with winder.stopping_on_ctrl_c("while moving to the start"):
+            approach(link, job.machine, (first.moves[0].ring_deg, job.machine["head.in_mm"]),
+                     tolerance(link, job.machine))
         return winder.wind(0)
     finally:
         if link is not None:
