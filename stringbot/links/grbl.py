@@ -186,6 +186,19 @@ class GrblLink(LineLink):
         self.settings = settings
         return settings
 
+    def query(self, text):
+        """Send ``text`` (``$$``, ``$I``) send-response; the lines answered before its ``ok``.
+
+        Call it only with nothing in flight (before streaming).  An ``error:N`` or
+        silence is a :class:`~stringbot.errors.MachineFailure` naming the query.
+        """
+        lines = self._ask(text, [])
+        if not lines or not lines[-1].startswith("ok"):
+            last = lines[-1] if lines else "nothing"
+            words = _error_words(_code(last)) if last.startswith("error") and _code(last) is not None else last
+            raise self.fail(f"the machine answered {text!r} with {words}")
+        return lines[:-1]
+
     # ---- state -----------------------------------------------------------------------
     def status(self, timeout=None):
         """Ask ``?`` and return the next status report (answers in between are handled)."""

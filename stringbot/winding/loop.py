@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 
 from ..errors import Interrupted, MachineFailure
+from ..links import LinkState
 from ..motion import move_seconds
 
 __all__ = ["WindState", "Progress", "WindResult", "Winder", "step_seconds"]
@@ -115,7 +116,7 @@ class Winder:
     def start(self, *, home):
         """Identify the firmware, check alarms, home if asked, set modal state."""
         self.state = WindState.CONNECTING
-        info = self.link.identify()
+        info = self.link.info if _identified(self.link) else self.link.identify()
         self.state = WindState.PREPARING
         with self.stopping_on_ctrl_c("while preparing (homing)"):
             self.link.prepare(home=home)
@@ -275,3 +276,8 @@ def _firmware_name(link):
     if info is None:
         return "?"
     return f"{info.name} {info.version}".strip()
+
+
+def _identified(link):
+    """The link has just identified the firmware (e.g. for the settings check): no need to ask again."""
+    return getattr(link, "info", None) is not None and getattr(link, "state", None) is LinkState.IDENTIFIED

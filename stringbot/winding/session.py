@@ -12,6 +12,7 @@ from firmware_protocol.machine import load_machine
 
 from ..errors import BadInput
 from ..links import open_link, sim_url
+from ..links.settings_check import require_agreement
 from ..motion import hook_steps
 from ..planner import read_plan
 from .approach import approach
@@ -136,8 +137,13 @@ def _new_journal(job):
                           machine=job.machine.name, steps=len(job.steps), durable=not job.fresh_world)
 
 
-def wind_plan(job, *, confirm=None, progress=None, link_options=None):
+def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=False):
     """Wind ``job`` from its first step.
+
+    ``check`` (``stringbot wind`` sets it unless ``--no-check``): first compare
+    the firmware's settings with the machine file
+    (:func:`stringbot.links.settings_check.require_agreement`); a machine that
+    disagrees raises ``SettingsDisagree`` before anything moves.
 
     Returns
     -------
@@ -151,6 +157,8 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None):
     link = None
     try:
         link = open_link(job.url, job.machine, **(link_options or {}))
+        if check:
+            require_agreement(link, job.machine)
         winder = Winder(link, job.steps, job.machine, journal=journal, progress=progress,
                         confirm=confirm)
         winder.start(home=job.machine["controller.homing"])
