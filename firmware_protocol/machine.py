@@ -360,6 +360,13 @@ def _check_consistency(m, source):
     if v["head.in_mm"] == v["head.out_mm"]:
         raise MachineFileError(f"{source}: head.in_mm equals head.out_mm ({v['head.in_mm']}); "
                                "expected two different positions (IN inside the pin circle, OUT outside)")
+    stroke = abs(v["head.out_mm"] - v["head.in_mm"])
+    clear = v["ring.pin_diameter_mm"] + v["thread.diameter_mm"]
+    if stroke < clear:
+        raise MachineFileError(
+            f"{source}: the head's stroke |head.out_mm - head.in_mm| = {stroke:g} mm does not clear the pins: "
+            f"expected at least ring.pin_diameter_mm + thread.diameter_mm = {clear:g} mm, so that the eyelet "
+            "gets round a pin (IN inside the pin circle, OUT outside it)")
     home_head = v["controller.home_head_mm"]
     if home_head is not None and (home_head - m.circle_mm) * (v["head.in_mm"] - m.circle_mm) <= 0:
         raise MachineFileError(

@@ -60,15 +60,16 @@ class _Lines(click.ParamType):
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
-def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, start_pin, size, lines,
-             importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache):
+@click.option("--force", is_flag=True,
+              help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
+def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, start_pin,
+             size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache, force):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
-    from .._files import check_not_same_file, check_output_path, write_atomic
+    from .._files import check_not_same_file, check_output_path, write_all_atomic
     from ..planner.build import plan_picture
     from ..planner.image import parse_crop
-    from ..planner.plan_file import write_plan
     from ..planner.render import draw_woven, png_bytes
 
     mach = None
@@ -79,6 +80,9 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
         ring = mach.pins
         if pins is not None and pins != ring:
             raise BadInput(f"--pins {pins} differs from machine {machine!r} with {ring} pins; give one of them")
+        if frame != "circle":
+            raise BadInput(f"--frame {frame} with machine {machine!r}, which winds a ring; expected --frame circle "
+                           "(or leave out --machine)")
         pins = ring
         for option, given, key in (("--diameter-mm", diameter_mm, "ring.diameter_mm"),
                                    ("--thread-mm", thread_mm, "thread.diameter_mm")):
@@ -98,6 +102,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
             if src:
                 check_not_same_file(out, src, what=what, source_what=name)
     check_not_same_file(preview, output, what="preview", source_what="plan")
+    if not force:
+        _refuse_a_wound_plan(output)
     if lines != "auto" and lines <= 0:
         raise BadInput(f"--lines {lines}; expected a positive number or auto")
     from ..planner.progress import reporting
@@ -116,8 +122,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     if machine is not None:
         p.parameters["machine"] = machine
     png = png_bytes(draw_woven(p, size=1001))
-    write_plan(p, output)
-    write_atomic(preview, png)
+    write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
@@ -137,6 +142,23 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                        f"{est.thread_m:.1f} m of thread")
 
 
+def _refuse_a_wound_plan(output):
+    """A plan whose journal has steps done is what a machine is (or was) winding: keep it."""
+    from ..winding.journal import journal_path_for, read_journal
+
+    journal = journal_path_for(output)
+    if not journal.is_file():
+        return
+    try:
+        state = read_journal(journal)
+    except BadInput:
+        return                         # not a journal we can read: nothing of ours to protect
+    if state.done:
+        where = "finished" if state.finished else f"{len(state.done)} of {state.steps_total} steps done"
+        raise BadInput(f"plan {output!r} has a winding journal {str(journal)!r} ({where}); overwriting the plan "
+                       "would orphan it: give another -o, or --force")
+
+
 @cli.command("render")
 @click.argument("plan", type=click.Path(path_type=str))
 @click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str), help="PNG to write.")
@@ -154,7 +176,7 @@ def render_cmd(plan, output, size, binary):
     check_output_path(output, what="drawing")
     check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
-    write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)))
+    write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
     how = "as 1-pixel lines" if binary else f"as woven ({p.thread_mm:g} mm thread on {p.diameter_mm:g} mm)"
     click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
 

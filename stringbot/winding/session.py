@@ -10,6 +10,7 @@ from pathlib import Path
 
 from firmware_protocol.machine import load_machine
 
+from .._files import check_output_path
 from ..errors import BadInput
 from ..links import open_link, sim_url
 from ..links.settings_check import require_agreement
@@ -96,6 +97,7 @@ def _check_record_path(record, plan_path):
     if not record.parent.is_dir():
         raise BadInput(f"record folder {str(record.parent)!r} does not exist; create it first "
                        f"(for --record {str(record)!r})")
+    check_output_path(record, what="--record")     # a device, FIFO or socket is never replaced
     if record.exists() and record.stat().st_size > 0:
         import json
         try:
