@@ -107,6 +107,8 @@ def run_methods(path, methods, k, pic, pins, size):
         t = time.perf_counter()
         if m == "woven":  # the default method with its own line count, as `stringbot plan IMG` makes it
             p = plan_picture(path, pins=pins, size=size, picture=pic)
+        elif m == "greedy":  # ThreadTone's own working size and gray (1001 px, luminance)
+            p = plan_picture(path, pins=pins, lines=k, method=m)
         else:
             p = plan_picture(path, pins=pins, size=size, lines=k, method=m, picture=pic)
         p.stats["bench_seconds"] = round(time.perf_counter() - t, 2)

@@ -113,6 +113,10 @@ class GcodeFirmware(Emulator):
                 break
         return dt
 
+    def _note(self, event, **detail):
+        """A notable event for the world's record (virtual time ``t`` added)."""
+        self.world.note(event, t=round(self.now, 6), **detail)
+
     def reconnect(self):
         """Run the clock until the port is back (no-op if it is up)."""
         if self._port_back_at is not None:
@@ -139,6 +143,9 @@ class GcodeFirmware(Emulator):
             head = self._to_physical(self.head_i, p[self.head_i])
             if (ring, head) != (self.world.ring_deg, self.world.head_mm):
                 self.world.move(ring, head)
+                if self.world.head_mm != head:
+                    # the head ran into its mechanical end: steps lost, the belief goes on without it
+                    self.offset[self.head_i] += self.world.head_mm - head
 
     def _to_physical(self, i, belief):
         """Where axis ``i`` physically is when the firmware believes ``belief``."""
@@ -231,6 +238,7 @@ class GcodeFirmware(Emulator):
 
     def _port_down(self, power, seconds):
         log.info("fault: port down (%s) for %.2f s", power.value, seconds)
+        self._note("power off" if power is Power.OFF else "port down")
         self.power = power
         self.port_up = False
         self._out.clear()
@@ -246,6 +254,7 @@ class GcodeFirmware(Emulator):
         self._port_back_at = None
         self.power = Power.ON
         self.port_up = True
+        self._note("power on" if was_off else "port up")
         if was_off:
             self._power_on()
         log.info("port back up")

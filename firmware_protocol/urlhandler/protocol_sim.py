@@ -26,6 +26,7 @@ emulator and world) is kept per URL for the life of the process;
 e.g. a fresh ``record`` file).
 """
 
+import atexit
 import logging
 import threading
 import time
@@ -52,6 +53,13 @@ class _Session:
         self.emulator, self.world, self.realtime = emulator, world, realtime
         self.wall = time.monotonic()
         self.lock = threading.RLock()
+
+    def close(self):
+        with self.lock:
+            try:
+                self.emulator.close()
+            except OSError as exc:          # a record folder removed meanwhile: nothing to keep
+                log.warning("sim: could not write the record: %s", exc)
 
     def sync(self):
         """Realtime mode: bring the virtual clock up to the wall clock."""
@@ -138,18 +146,31 @@ def session(url):
         except OSError as exc:
             raise SerialException(f"{FORM}: record: {exc}") from None
         s = _Session(emulator, world, opts["realtime"])
+        if not _SESSIONS:
+            atexit.register(_close_all)
         _SESSIONS[url] = s
         log.info("sim: new %s machine for %s", machine.name, url)
         return s
 
 
 def forget(url=None):
-    """Drop the simulated machine of ``url`` (all of them if None)."""
+    """Drop the simulated machine of ``url`` (all of them if None); its record is written first."""
     with _LOCK:
+        gone = list(_SESSIONS.values()) if url is None else [s for s in [_SESSIONS.get(url)] if s]
         if url is None:
             _SESSIONS.clear()
         else:
             _SESSIONS.pop(url, None)
+    for s in gone:
+        s.close()
+
+
+def _close_all():
+    """At exit: every simulated machine writes its record (the simulator exits with the process)."""
+    with _LOCK:
+        sessions = list(_SESSIONS.values())
+    for s in sessions:
+        s.close()
 
 
 class Serial(SerialBase):
@@ -181,6 +202,12 @@ class Serial(SerialBase):
     def close(self):
         self.is_open = False
         self._in.clear()
+        if self._session is not None:
+            with self._session.lock:
+                try:
+                    self._session.world.flush()      # the record is current once the port is closed
+                except OSError as exc:
+                    log.warning("sim: could not write the record: %s", exc)
         self._session = None
 
     def from_url(self, url):
@@ -240,6 +267,8 @@ class Serial(SerialBase):
                     continue
             if self._timeout == 0 or timeout.expired():
                 break
+            with s.lock:
+                s.emulator.idle()           # waiting in wall time: the record catches up if at rest
             wait = 0.005 if nxt is None else min(max(nxt, 0.0005), 0.02)
             left = timeout.time_left()
             time.sleep(wait if left is None else max(min(wait, left), 0.0))

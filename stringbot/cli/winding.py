@@ -128,6 +128,9 @@ def simulate(machine_name, pty_path, record, realtime, faults, settings):
     from firmware_protocol.machine import load_machine
     from firmware_protocol.pty import PtyPathError, PtyServer, check_pty_path
     machine = load_machine(machine_name)
+    if record is not None:
+        from .._files import check_output_path
+        check_output_path(record, what="--record")
     try:
         check_pty_path(pty_path)            # before the record file is written
     except PtyPathError as exc:
