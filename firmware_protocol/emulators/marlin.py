@@ -67,7 +67,7 @@ class MarlinEmulator(GcodeFirmware):
         super().__init__(machine, world=world, faults=faults, planner_blocks=mc.PLANNER_BLOCKS,
                          rates=rates, accels=accels)
         self.state = MarlinState.READY
-        self.queue = deque()          # (command, silent) checked and waiting to run
+        self.queue = deque()          # (command, silent, line count) checked and waiting to run
         self._raw = bytearray()
         self._busy_at = None          # next keepalive while a command blocks
         self._boot(wipe=True)
@@ -96,7 +96,7 @@ class MarlinEmulator(GcodeFirmware):
 
     # ---- the main loop ------------------------------------------------------------------------------
     def _pump(self):
-        while self.power is not Power.OFF and self.state is MarlinState.READY:
+        while self.running and self.state is MarlinState.READY:
             while len(self.queue) < mc.BUFSIZE and self._rx:
                 c = self._rx.pop(0)
                 if c in (0x0A, 0x0D):
@@ -113,8 +113,8 @@ class MarlinEmulator(GcodeFirmware):
             self._busy_at = None
             if not self.queue:
                 return
-            command, silent = self.queue.popleft()
-            self._start_task(self._command(command), silent)
+            command, silent, seq = self.queue.popleft()
+            self._start_line(self._command(command), silent, seq)
 
     def _line(self, raw):
         got = self._line_faults(raw)
@@ -148,7 +148,7 @@ class MarlinEmulator(GcodeFirmware):
                 self._line_error(mc.ERR_CHECKSUM_MISMATCH)
                 return
             self.last_n = n
-        self.queue.append((command, "drop-ok" in kinds))
+        self.queue.append((command, "drop-ok" in kinds, self.faults.lines))
 
     def _line_error(self, message):
         self._emit(f"Error:{message}{self.last_n}")
@@ -361,8 +361,4 @@ class MarlinEmulator(GcodeFirmware):
         self.queue.clear()
 
     def _power_on(self):
-        self._boot(wipe=True)
-
-    def _brownout(self):
-        log.info("fault: firmware reset (moving=%s)", self.motion.moving)
         self._boot(wipe=True)

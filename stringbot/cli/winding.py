@@ -120,8 +120,10 @@ def _fmt_s(seconds):
 @click.option("--record", default=None, type=click.Path(dir_okay=False),
               help="Write the world's record (wraps, collisions) to this JSON file.")
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
-@click.option("--faults", default=None, help="Faults to inject: kind@N,... (disconnect, reset, power, "
-                                             "garble, drop-ok, error; N counts received lines).")
+@click.option("--faults", default=None, help="Faults to inject, a comma list: kind@N (as line N arrives), "
+                                             "kind@N+F (F of line N's move done), kind@t=SECONDS, kind@N..M; "
+                                             "kinds reset, reboot, power, disconnect, garble, drop-ok, error "
+                                             "(docs/simulator.md).")
 def simulate(machine_name, pty_path, record, realtime, faults):
     """Serve the simulated machine on a pseudo-terminal until Ctrl-C."""
     from firmware_protocol.emulators.factory import build_emulator
