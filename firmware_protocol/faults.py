@@ -48,6 +48,10 @@ Line kinds (``N``, ``line=N`` or a range): they hit line N.
     ``Error:...`` with ``Resend:``.
 ``drop-ok``
     line N is executed but its response (``ok``) is lost on the way back.
+``ignore``
+    line N is answered ``ok`` but not executed (a firmware that acknowledges
+    without acting): no motion, no change of state; the reported position
+    stays where it was.
 """
 
 import math
@@ -58,11 +62,11 @@ __all__ = ["KINDS", "MACHINE_KINDS", "LINE_KINDS", "Fault", "FaultPlan", "parse_
            "POWER_OFF_SECONDS", "DISCONNECT_SECONDS", "BOOT_SECONDS"]
 
 MACHINE_KINDS = ("disconnect", "reset", "reboot", "power")
-LINE_KINDS = ("garble", "drop-ok", "error")
+LINE_KINDS = ("garble", "drop-ok", "error", "ignore")
 KINDS = MACHINE_KINDS + LINE_KINDS
 FAULTS_FORM = ("a comma list of kind@N, kind@N+F (0<F<1), kind@t=SECONDS or, for "
                + "/".join(LINE_KINDS) + ", kind@N..M / kind@N.. ; kind one of " + ", ".join(KINDS)
-               + " and N >= 1 (e.g. reset@12,reset@t=30.5,power@40+0.5,error@60..)")
+               + " and N >= 1 (e.g. reset@12,reset@t=30.5,power@40+0.5,ignore@60..)")
 #: Virtual seconds the port stays down after ``power`` (the firmware restarts when it comes back).
 POWER_OFF_SECONDS = 1.0
 #: Virtual seconds the port stays down after ``disconnect``.

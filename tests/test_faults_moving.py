@@ -41,13 +41,13 @@ def status(emu):
 # ---- the grammar ---------------------------------------------------------------------------------
 def test_fault_forms_parse_and_print_back():
     faults = parse_faults("reset@12, reset@line=12, reset@t=12.5, power@230+0.4, reboot@line=7+.5, "
-                          "error@5..9, error@30.., error@40+, garble@line=3")
+                          "ignore@5..9, ignore@30.., ignore@40+, garble@line=3")
     assert faults == [Fault("reset", 12), Fault("reset", 12), Fault("reset", time=12.5),
                       Fault("power", 230, fraction=0.4), Fault("reboot", 7, fraction=0.5),
-                      Fault("error", 5, last=9), Fault("error", 30, last=math.inf),
-                      Fault("error", 40, last=math.inf), Fault("garble", 3)]
+                      Fault("ignore", 5, last=9), Fault("ignore", 30, last=math.inf),
+                      Fault("ignore", 40, last=math.inf), Fault("garble", 3)]
     assert [str(f) for f in faults] == ["reset@12", "reset@12", "reset@t=12.5", "power@line=230+0.4",
-                                        "reboot@line=7+0.5", "error@5..9", "error@30..", "error@40..",
+                                        "reboot@line=7+0.5", "ignore@5..9", "ignore@30..", "ignore@40..",
                                         "garble@3"]
 
 
@@ -57,7 +57,7 @@ def test_fault_forms_parse_and_print_back():
     ("reset@3..9", "reset fires once, so it takes no range"),
     ("garble@t=3", "garble hits a line as it arrives"),
     ("drop-ok@3+0.5", "drop-ok hits a line as it arrives"),
-    ("error@9..3", "the range ends before it starts"),
+    ("ignore@9..3", "the range ends before it starts"),
     ("reset@t=", "expected a comma list"),
     ("reset@t=-1", "expected a comma list"),
     ("melt@t=3", "expected a comma list"),
@@ -68,8 +68,8 @@ def test_bad_fault_forms_name_the_expected_form(bad, why):
 
 
 def test_ranges_fire_on_every_line_they_cover():
-    plan = FaultPlan("error@2..3,drop-ok@4..")
-    assert [plan.next_line() for _ in range(6)] == [set(), {"error"}, {"error"}, {"drop-ok"},
+    plan = FaultPlan("ignore@2..3,drop-ok@4..")
+    assert [plan.next_line() for _ in range(6)] == [set(), {"ignore"}, {"ignore"}, {"drop-ok"},
                                                    {"drop-ok"}, {"drop-ok"}]
 
 
@@ -261,3 +261,27 @@ def test_reset_on_open_through_a_pty(uno, tmp_path):
 def test_reset_on_open_is_off_by_default():
     emu, world = grbl()
     assert emu.port_opened() is False and emu.transmit() == b""
+
+
+# ---- ignore: ok without execution ----------------------------------------------------------------
+def test_grbl_ignore_answers_ok_and_does_nothing():
+    emu, world = grbl("ignore@2,ignore@4..")
+    run_exchange(emu, [
+        (b"G0 X10\nG0 X20\nG4 P0\n", OK + OK + OK),        # line 2 acknowledged, not run
+        (b"?", b"<Idle|MPos:10.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n"),
+        (b"G10 L20 P1 X0\nG0 X30\n$X\n", OK + OK + OK),     # from line 4 on: nothing happens
+    ])
+    emu.advance(5.0)
+    assert world.ring_deg == 10.0
+    assert status(emu).startswith("<Idle|MPos:10.000,0.000,0.000|")
+    assert emu.parser.coord_systems[0] == [0.0, 0.0, 0.0]              # G10 L20 did nothing either
+
+
+def test_marlin_ignore_answers_ok_and_does_nothing():
+    emu, world = build_emulator("marlin-ring", faults="ignore@3")
+    emu.transmit()
+    n = lambda i, c: mc.numbered(i, c).encode() + b"\n"  # noqa: E731
+    run_exchange(emu, [(n(0, "M110 N0"), b"ok\n"), (n(1, "G0 A10"), b"ok\n"), (n(2, "G0 A20"), b"ok\n"),
+                       (n(3, "M400"), b"ok\n"),
+                       (n(4, "M114"), b"X:0.00 Y:0.00 Z:0.00 A:10.00 Count X:0 Y:0 Z:0 A:444\nok\n")])
+    assert world.ring_deg == 10.0

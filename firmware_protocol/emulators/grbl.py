@@ -240,6 +240,10 @@ class GrblEmulator(GcodeFirmware):
             log.info("fault: line %r rejected", bytes(raw))
             self._respond(20, silent)
             return
+        if "ignore" in kinds:
+            log.info("fault: line %r acknowledged, not executed", bytes(raw))
+            self._respond(0, silent)
+            return
         text, overflow = clean_line(raw, 80)
         result = self._execute(text, overflow)
         self._start_line(result, silent, self.faults.lines)

@@ -67,7 +67,7 @@ class MarlinEmulator(GcodeFirmware):
         super().__init__(machine, world=world, faults=faults, planner_blocks=mc.PLANNER_BLOCKS,
                          rates=rates, accels=accels)
         self.state = MarlinState.READY
-        self.queue = deque()          # (command, silent, line count) checked and waiting to run
+        self.queue = deque()          # (command, silent, line count, ignore) checked, waiting to run
         self._raw = bytearray()
         self._busy_at = None          # next keepalive while a command blocks
         self._boot(wipe=True)
@@ -113,7 +113,11 @@ class MarlinEmulator(GcodeFirmware):
             self._busy_at = None
             if not self.queue:
                 return
-            command, silent, seq = self.queue.popleft()
+            command, silent, seq, ignore = self.queue.popleft()
+            if ignore:
+                log.info("fault: %r acknowledged, not executed", command)
+                self._respond(0, silent)
+                continue
             self._start_line(self._command(command), silent, seq)
 
     def _line(self, raw):
@@ -148,7 +152,7 @@ class MarlinEmulator(GcodeFirmware):
                 self._line_error(mc.ERR_CHECKSUM_MISMATCH)
                 return
             self.last_n = n
-        self.queue.append((command, "drop-ok" in kinds, self.faults.lines))
+        self.queue.append((command, "drop-ok" in kinds, self.faults.lines, "ignore" in kinds))
 
     def _line_error(self, message):
         self._emit(f"Error:{message}{self.last_n}")

@@ -122,8 +122,8 @@ def _fmt_s(seconds):
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
 @click.option("--faults", default=None, help="Faults to inject, a comma list: kind@N (as line N arrives), "
                                              "kind@N+F (F of line N's move done), kind@t=SECONDS, kind@N..M; "
-                                             "kinds reset, reboot, power, disconnect, garble, drop-ok, error "
-                                             "(docs/simulator.md).")
+                                             "kinds reset, reboot, power, disconnect, garble, drop-ok, error, "
+                                             "ignore (docs/simulator.md).")
 def simulate(machine_name, pty_path, record, realtime, faults):
     """Serve the simulated machine on a pseudo-terminal until Ctrl-C."""
     from firmware_protocol.emulators.factory import build_emulator
