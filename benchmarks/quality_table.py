@@ -1,17 +1,20 @@
-"""Quality: fitness vs greedy on every test picture, SSIM as in the paper's section 4.1.
+"""Quality: stringbot's methods against the peers' real plans, all scored by one scorer.
 
-For each picture: greedy with the paper's automatic line count, then fitness
-(and, with --disconnected, its chord-set variant) with exactly as many lines
-as greedy drew; both scored by SSIM (plain and blurred).  Fitness runs with
-its default style (auto: the better of detail and fill); the table also gives
-which style was kept and the detail style alone (the paper's knobs as given).  Prints a table, the
-average margins, the share of short chords (span < pins / 30, the rim
-crowd the beta term is there to prevent) and the share of each drawing's
-thread pixels (at the working size) lying on white (gray > 230) parts of the
-picture, against the white share of the picture itself; with --sheet PATH writes a contact sheet
-(source | greedy | fitness) for the README.
+For each test picture the peers' plans (``../shared/reference/peers/``:
+ThreadTone, the paper's greedy baseline, with its own stopping rule, and
+marco-giunta/stringart at ThreadTone's line count) are read from their JSON
+(``pin_xy``, ``crop``, ``sequence``) and scored exactly as ``stringbot
+score`` scores a plan: the paper's SSIM (section 4.1) with Wang et al.'s
+Gaussian window and scikit-image's default window, plain and blurred, and the
+as-woven error (lower is better).  stringbot's methods run at ThreadTone's
+line count on the same picture (300 pins, 401 px, the default crop):
+``fitness`` (the paper, style auto), ``greedy`` (ThreadTone as published) and
+``default`` (the default planner).  ``woven`` adds ``stringbot plan IMG
+--machine grbl-ring`` as a user gets it (auto lines): its as-woven error is
+compared with the better of the two peers.
 
-Usage: python benchmarks/quality_table.py [--images DIR] [--sheet docs/contact-sheet.png] [--json]
+Usage: python benchmarks/quality_table.py [--methods default,fitness,greedy,woven] [--images DIR]
+           [--sheet docs/contact-sheet.png] [--json]
 """
 
 import argparse
@@ -23,39 +26,60 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_IMAGES = ROOT.parent / "shared" / "images"
+SHARED = next((d / "shared" for d in ROOT.parents if (d / "shared" / "images").is_dir()), ROOT.parent / "shared")
+DEFAULT_IMAGES = SHARED / "images"
+DEFAULT_PEERS = SHARED / "reference" / "peers"
+PEERS = ("threadtone", "giunta")
+KEYS = ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred", "woven_error")
+
+
+def peer_plan(path):
+    """A peer's plan-like JSON as a :class:`Plan` (only pins, frame, pin_xy, crop and sequence count)."""
+    from stringbot.planner.plan_file import Plan
+
+    d = json.loads(Path(path).read_text())
+    return Plan(pins=d["pins"], frame=d.get("frame", "circle"), pin_xy=np.asarray(d["pin_xy"], dtype=float),
+                crop=d["crop"], sequence=[int(p) for p in d["sequence"]], method=d.get("method", "peer"),
+                stats={"seconds": d.get("seconds")})
+
+
+def score_plan(plan, image, weights):
+    """Score a plan against its picture as `stringbot score` does (its own crop, the picture's gray)."""
+    from stringbot.planner.image import read_picture
+    from stringbot.planner.scoring import SCORE_SIZE, WOVEN_SIZE, score
+
+    ref = read_picture(image, size=SCORE_SIZE, crop=plan.crop, weights=weights)
+    woven = read_picture(image, size=WOVEN_SIZE, crop=plan.crop, weights=weights)
+    return score(plan, ref.gray, woven_gray=woven.gray)
 
 
 def short_share(plan, fraction=30):
     """Share of chords spanning fewer than pins / fraction pins (10 of 300): the rim crowd."""
     c = np.asarray(plan.chord_list())
     d = np.abs(c[:, 0] - c[:, 1])
-    span = np.minimum(d, plan.pins - d)
-    return float(np.mean(span < plan.pins / fraction))
+    return float(np.mean(np.minimum(d, plan.pins - d) < plan.pins / fraction))
 
 
-def white_share(plan, gray, level=230):
-    """Share of the drawing's thread pixels (at the working size) lying on white (gray > level) picture pixels."""
-    from stringbot.planner.render import draw
-
-    thread = draw(plan, size=gray.shape[0]) == 0
-    return float(np.mean(gray[thread] > level)) if thread.any() else 0.0
-
-
-def row_images(pic_gray, plans, frame, side):
+def sheet_tile(plan, side):
     from skimage.transform import resize
 
-    from stringbot.planner.fitness import frame_mask
-    from stringbot.planner.render import draw
+    from stringbot.planner.scoring import woven_drawing
 
-    g = np.where(frame_mask(pic_gray.shape[0], frame), pic_gray / 255.0, 1.0)
-    tiles = [resize(g, (side, side), anti_aliasing=True)]
-    tiles += [resize(draw(p, size=1001) / 255.0, (side, side), anti_aliasing=True) for p in plans]
-    return tiles
+    return resize(woven_drawing(plan.chord_list(), plan.pin_xy), (side, side), anti_aliasing=True)
+
+
+def source_tile(image, crop, weights, side):
+    from stringbot.planner.fitness import frame_mask
+    from stringbot.planner.image import read_picture
+
+    g = read_picture(image, size=side, crop=crop, weights=weights).gray / 255.0
+    return np.where(frame_mask(side, "circle"), g, 1.0)
 
 
 def contact_sheet(rows, names, titles, path, side=260):
     from PIL import Image, ImageDraw
+
+    from stringbot._files import write_atomic
 
     pad, head = 8, 22
     w = len(titles) * (side + pad) + pad
@@ -70,87 +94,100 @@ def contact_sheet(rows, names, titles, path, side=260):
         for k, tile in enumerate(tiles):
             sheet.paste(Image.fromarray((np.clip(tile, 0, 1) * 255).astype(np.uint8)), (pad + k * (side + pad), y + 14))
     buf = __import__("io").BytesIO()
-    # 16 gray levels (4-bit PNG): a third of the size, no visible difference for thread drawings
-    small = sheet.quantize(colors=16, method=Image.Quantize.MEDIANCUT)
-    small.save(buf, format="PNG", optimize=True, bits=4)
-    from stringbot._files import write_atomic
+    sheet.save(buf, format="PNG", optimize=True)
     write_atomic(path, buf.getvalue())
+
+
+def run_methods(path, methods, k, pic, pins, size):
+    """stringbot's plans of one picture at ``k`` lines (and ``woven``: as a user gets it)."""
+    from stringbot.planner.build import plan_picture
+
+    plans = {}
+    for m in methods:
+        t = time.perf_counter()
+        if m == "woven":  # the default method with its own line count, as `stringbot plan IMG` makes it
+            p = plan_picture(path, pins=pins, size=size, picture=pic)
+        elif m == "greedy":  # ThreadTone's own working size and gray (1001 px, luminance)
+            p = plan_picture(path, pins=pins, lines=k, method=m)
+        else:
+            p = plan_picture(path, pins=pins, size=size, lines=k, method=m, picture=pic)
+        p.stats["bench_seconds"] = round(time.perf_counter() - t, 2)
+        plans[m] = p
+    return plans
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", default=str(DEFAULT_IMAGES))
+    ap.add_argument("--peers", default=str(DEFAULT_PEERS))
+    ap.add_argument("--methods", default="fitness,greedy",
+                    help="stringbot methods to run (comma-separated): fitness, greedy, default, woven")
+    ap.add_argument("--only", default=None, help="comma-separated picture names (default: all)")
     ap.add_argument("--pins", type=int, default=300)
     ap.add_argument("--size", type=int, default=401)
-    ap.add_argument("--disconnected", action="store_true", help="also score the disconnected variant")
-    ap.add_argument("--sheet", default=None, help="write a contact sheet PNG here")
+    ap.add_argument("--sheet", default=None, help="write a contact sheet PNG here (source | ThreadTone | fitness | "
+                                                  "default, as woven)")
     ap.add_argument("--json", action="store_true")
-    ap.add_argument("--greedy-literal", action="store_true",
-                    help="greedy lowers 15 per thread at the working size (not scaled from ThreadTone's 500-px radius)")
     opts = ap.parse_args()
 
-    from stringbot.planner.build import plan_picture
-    from stringbot.planner.fitness import frame_mask
     from stringbot.planner.image import read_picture
-    from stringbot.planner.render import score
 
+    methods = [m for m in opts.methods.split(",") if m]
     paths = sorted(p for p in Path(opts.images).iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
+    if opts.only:
+        keep = set(opts.only.split(","))
+        paths = [p for p in paths if p.stem in keep]
     results, rows, names = [], [], []
     for path in paths:
         pic = read_picture(path, size=opts.size)
-        t = time.perf_counter()
-        greedy = plan_picture(path, pins=opts.pins, size=opts.size, method="greedy", picture=pic,
-                              greedy_reference_radius=None if opts.greedy_literal else 500.0)
-        k = greedy.stats["lines"]
-        ref = read_picture(path, size=201, weights=pic.weights)  # as `stringbot score` reads it
-        fitness = plan_picture(path, pins=opts.pins, size=opts.size, lines=k, picture=pic, reference=ref)
-        plans = [greedy, fitness]
-        if opts.disconnected:
-            plans.append(plan_picture(path, pins=opts.pins, size=opts.size, lines=k, disconnected=True, picture=pic,
-                                      reference=ref))
-        scores = [score(p, ref.gray) for p in plans]
-        style = fitness.parameters["style"]
-        detail = scores[1] if style == "detail" else score(
-            plan_picture(path, pins=opts.pins, size=opts.size, lines=k, picture=pic, style="detail"), ref.gray)
-        r = {"image": path.name, "lines_auto": greedy.parameters["lines_target"], "lines": k,
-             "short_greedy": short_share(greedy), "short_fitness": short_share(fitness),
-             "white_picture": float(np.mean(pic.gray[frame_mask(opts.size, "circle")] > 230)),
-             "white_greedy": white_share(greedy, pic.gray), "white_fitness": white_share(fitness, pic.gray),
-             "greedy": scores[0]["ssim"], "fitness": scores[1]["ssim"],
-             "greedy_blurred": scores[0]["ssim_blurred"], "fitness_blurred": scores[1]["ssim_blurred"],
-             "style": style, "detail": detail["ssim"], "detail_blurred": detail["ssim_blurred"],
-             "seconds": round(time.perf_counter() - t, 2)}
-        if opts.disconnected:
-            r.update(disconnected=scores[2]["ssim"], disconnected_blurred=scores[2]["ssim_blurred"])
-        results.append(r)
-        if opts.sheet:
-            rows.append(row_images(pic.gray, plans, "circle", 260))
-            names.append(f"{path.name}: {k} lines")
+        peers = {name: peer_plan(Path(opts.peers) / f"{name}_{path.stem}.json") for name in PEERS}
+        k = len(peers["threadtone"].sequence) - 1
+        plans = dict(peers)
+        plans.update(run_methods(path, methods, k, pic, opts.pins, opts.size))
+        row = {"image": path.stem, "lines": k}
+        for name, plan in plans.items():
+            s = score_plan(plan, path, pic.weights)
+            row[name] = {key: round(s[key], 4) for key in KEYS}
+            row[name].update(lines=s["lines"], short=round(short_share(plan), 3),
+                             seconds=plan.stats.get("bench_seconds", plan.stats.get("seconds")))
+        results.append(row)
         if not opts.json:
-            extra = (f"  disc {r['disconnected']:.3f} {r['disconnected_blurred']:.3f}" if opts.disconnected else "")
-            print(f"{path.name:<16} lines {k:5d}  SSIM greedy {r['greedy']:.3f} fitness {r['fitness']:.3f} "
-                  f"({r['fitness'] - r['greedy']:+.3f})  blurred greedy {r['greedy_blurred']:.3f} "
-                  f"fitness {r['fitness_blurred']:.3f} ({r['fitness_blurred'] - r['greedy_blurred']:+.3f})  "
-                  f"short chords greedy {100 * r['short_greedy']:.0f}% fitness {100 * r['short_fitness']:.0f}%  "
-                  f"thread on white greedy {100 * r['white_greedy']:.0f}% fitness {100 * r['white_fitness']:.0f}% "
-                  f"(picture {100 * r['white_picture']:.0f}%)  style {style} (detail alone {r['detail']:.3f} "
-                  f"{r['detail_blurred']:.3f}){extra}")
+            print(f"{path.stem} ({k} lines at ThreadTone's count)")
+            for name in plans:
+                r = row[name]
+                print(f"  {name:<11} lines {r['lines']:5d}  SSIM {r['ssim']:.3f} / {r['ssim_blurred']:.3f}  "
+                      f"7x7 {r['ssim_uniform']:.3f} / {r['ssim_uniform_blurred']:.3f}  woven {r['woven_error']:.4f}"
+                      f"  short {100 * r['short']:.0f}%  {r['seconds']} s")
             sys.stdout.flush()
-    plain = np.mean([r["fitness"] - r["greedy"] for r in results])
-    blurred = np.mean([r["fitness_blurred"] - r["greedy_blurred"] for r in results])
-    wins = sum(r["fitness"] > r["greedy"] and r["fitness_blurred"] > r["greedy_blurred"] for r in results)
-    d_plain = np.mean([r["detail"] - r["greedy"] for r in results])
-    d_blurred = np.mean([r["detail_blurred"] - r["greedy_blurred"] for r in results])
+        if opts.sheet:
+            tiles = [source_tile(path, plans["default"].crop if "default" in plans else peers["threadtone"].crop,
+                                 pic.weights, 260)]
+            tiles += [sheet_tile(plans[m], 260) for m in ("threadtone", "fitness", "default") if m in plans]
+            rows.append(tiles)
+            names.append(f"{path.stem}: {k} lines")
+    summary = {}
+    for name in list(PEERS) + methods:
+        if name == "woven":
+            continue
+        summary[name] = {key: round(float(np.mean([r[name][key] for r in results])), 4) for key in KEYS}
+    for m in methods:
+        if m == "woven":
+            continue
+        for peer in PEERS:
+            d = [r[m]["ssim"] - r[peer]["ssim"] for r in results]
+            summary[f"{m} - {peer}"] = {"ssim_mean": round(float(np.mean(d)), 4), "ssim_min": round(float(min(d)), 4),
+                                        "ssim_blurred_mean": round(float(np.mean(
+                                            [r[m]["ssim_blurred"] - r[peer]["ssim_blurred"] for r in results])), 4)}
+    if "woven" in methods:
+        summary["woven / best peer"] = {r["image"]: round(r["woven"]["woven_error"] / min(
+            r[p]["woven_error"] for p in PEERS), 3) for r in results}
     if opts.json:
-        print(json.dumps({"rows": results, "margin": plain, "margin_blurred": blurred, "wins": wins,
-                          "detail_margin": d_plain, "detail_margin_blurred": d_blurred}, indent=1))
+        print(json.dumps({"rows": results, "summary": summary}, indent=1))
     else:
-        print(f"average margin (fitness - greedy): SSIM {plain:+.3f}, blurred {blurred:+.3f}; "
-              f"fitness wins both on {wins} of {len(results)} pictures\n"
-              f"detail style alone (the paper's knobs): SSIM {d_plain:+.3f}, blurred {d_blurred:+.3f}")
+        for name, v in summary.items():
+            print(f"{name:<22} {v}")
     if opts.sheet:
-        titles = ["source", "greedy", "fitness"] + (["disconnected"] if opts.disconnected else [])
-        contact_sheet(rows, names, titles, opts.sheet)
+        contact_sheet(rows, names, ["source", "ThreadTone", "paper fitness", "default"], opts.sheet)
         if not opts.json:
             print(f"contact sheet -> {opts.sheet}")
 

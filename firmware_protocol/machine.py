@@ -79,8 +79,8 @@ SCHEMA = {
         "travel_deg": _Key(float, 36000.0, lo=360.0, hi=1e7,
                            doc="the ring axis stays within pin0_angle_deg +- travel_deg"),
         "steps_per_deg": _Key(float, None, lo=0.0, hi=1e6, lo_open=True,
-                              doc="the firmware's steps per degree (GRBL $100 on X); documentation, "
-                                  "shown as the step resolution"),
+                              doc="the firmware's steps per degree of the ring axis (GRBL $100 on X, "
+                                  "grblHAL $103 on A, Marlin M92 A); `machines check` compares it"),
         "feed_deg_per_min": _Key(float, 36000.0, lo=0.0, hi=1e7, lo_open=True),
         "accel_deg_per_s2": _Key(float, 720.0, lo=0.0, hi=1e7, lo_open=True),
     },
@@ -89,6 +89,9 @@ SCHEMA = {
         "out_mm": _Key(float, lo=-1000.0, hi=1000.0),
         "feed_mm_per_min": _Key(float, 3000.0, lo=0.0, hi=1e6, lo_open=True),
         "accel_mm_per_s2": _Key(float, 500.0, lo=0.0, hi=1e6, lo_open=True),
+        "steps_per_mm": _Key(float, None, lo=0.0, hi=1e6, lo_open=True,
+                             doc="the firmware's steps per mm of the head axis (GRBL $101 on Y); "
+                                 "the host allows one step of it when it compares positions; `machines check` compares it"),
         "travel_min_mm": _Key(float, None, lo=-1000.0, hi=1000.0,
                               doc="the head axis' mechanical end on the low side (the simulator records "
                                   "driving past it as a crash); default: a quarter of the IN-OUT "
@@ -357,6 +360,13 @@ def _check_consistency(m, source):
     if v["head.in_mm"] == v["head.out_mm"]:
         raise MachineFileError(f"{source}: head.in_mm equals head.out_mm ({v['head.in_mm']}); "
                                "expected two different positions (IN inside the pin circle, OUT outside)")
+    stroke = abs(v["head.out_mm"] - v["head.in_mm"])
+    clear = v["ring.pin_diameter_mm"] + v["thread.diameter_mm"]
+    if stroke < clear:
+        raise MachineFileError(
+            f"{source}: the head's stroke |head.out_mm - head.in_mm| = {stroke:g} mm does not clear the pins: "
+            f"expected at least ring.pin_diameter_mm + thread.diameter_mm = {clear:g} mm, so that the eyelet "
+            "gets round a pin (IN inside the pin circle, OUT outside it)")
     home_head = v["controller.home_head_mm"]
     if home_head is not None and (home_head - m.circle_mm) * (v["head.in_mm"] - m.circle_mm) <= 0:
         raise MachineFileError(

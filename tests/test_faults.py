@@ -111,7 +111,8 @@ def test_grblhal_power_fault_through_the_factory():
 
 
 def test_marlin_faults():
-    emu, world = build_emulator("marlin-ring", faults="garble@2,drop-ok@3,reset@5")
+    # software endstops off: the move below goes under the believed 0 that power-up gives
+    emu, world = build_emulator("marlin-ring", faults="garble@2,drop-ok@3,reset@5", settings=["M211 S0"])
     emu.transmit()
     n = lambda i, c: mc.numbered(i, c).encode() + b"\n"  # noqa: E731
     run_exchange(emu, [

@@ -9,7 +9,8 @@ import pytest
 
 from stringbot.errors import BadInput
 from stringbot.planner.build import DEFAULTS, FILL, plan_picture, style_candidates
-from stringbot.planner.render import draw, score
+from stringbot.planner.render import draw
+from stringbot.planner.scoring import score
 
 from planner_helpers import picture
 
@@ -56,7 +57,10 @@ def test_auto_keeps_the_style_whose_drawing_scores_higher_and_records_both():
     auto = plan(gray)
     styles = auto.stats["styles"]
     assert set(styles) == {"detail", "fill"}
-    rank = {k: v["ssim"] + v["ssim_blurred"] for k, v in styles.items()}
+    # no one SSIM variant decides: both windows, plain and blurred, are summed
+    keys = ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred")
+    assert all(set(keys) <= set(v) for v in styles.values())
+    rank = {k: sum(v[key] for key in keys) for k, v in styles.items()}
     chosen = auto.parameters["style"]
     assert rank[chosen] == max(rank.values())
     assert auto.parameters["style_requested"] == "auto"

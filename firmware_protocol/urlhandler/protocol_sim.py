@@ -2,12 +2,16 @@
 
 URL form::
 
-    sim://[?machine=NAME|PATH][&record=FILE][&realtime=0|1][&faults=kind@N,...]
+    sim://[?machine=NAME|PATH][&record=FILE][&realtime=0|1][&faults=kind@N,...][&set=SETTING]...
 
 ``machine`` is a bundled machine name or a machine file (default
 ``grbl-ring``); ``record`` the world's JSON record; ``realtime=1`` runs the
 firmware's clock at wall-clock speed (default: as fast as possible, in
-order); ``faults`` as in :mod:`firmware_protocol.faults`.
+order); ``faults`` as in :mod:`firmware_protocol.faults`; ``set`` (any
+number of times) a firmware setting the machine starts with instead of the
+machine file's (``set=$100=40``, ``set=M92+A40``, ``set=ring:Drive+Mode=1``;
+:func:`firmware_protocol.settings.parse_preset`), to practise on a mis-set
+machine.
 
 Writes go straight to the emulator.  A read that finds nothing ready runs the
 virtual clock to the next event (fast mode) or sleeps (realtime mode) until
@@ -35,7 +39,8 @@ __all__ = ["Serial", "FORM", "parse_url", "session", "forget"]
 
 log = logging.getLogger(__name__)
 
-FORM = 'expected a string in the form "sim://[?machine=NAME][&record=FILE][&realtime=0|1][&faults=kind@N,...]"'
+FORM = ('expected a string in the form '
+        '"sim://[?machine=NAME][&record=FILE][&realtime=0|1][&faults=kind@N,...][&set=SETTING]..."')
 
 _SESSIONS = {}
 _LOCK = threading.Lock()
@@ -84,12 +89,17 @@ def parse_url(url):
         raise SerialException(f"{FORM}: not starting with sim:// ({parts.scheme!r})")
     if parts.netloc or parts.path not in ("", "/"):
         raise SerialException(f"{FORM}: unexpected {parts.netloc + parts.path!r} before the '?'")
-    opts = {"machine": "grbl-ring", "record": None, "realtime": False, "faults": ""}
+    opts = {"machine": "grbl-ring", "record": None, "realtime": False, "faults": "", "set": []}
     try:
         query = urllib.parse.parse_qs(parts.query, keep_blank_values=True, strict_parsing=bool(parts.query))
     except ValueError as exc:
         raise SerialException(f"{FORM}: {exc}") from None
     for option, values in query.items():
+        if option == "set":
+            if not all(values):
+                raise SerialException(f"{FORM}: set is empty")
+            opts["set"] = list(values)
+            continue
         if len(values) != 1:
             raise SerialException(f"{FORM}: option {option!r} given {len(values)} times")
         value = values[0]
@@ -126,9 +136,12 @@ def session(url):
             machine = load_machine(opts["machine"])
             if machine["controller.kind"] == "gcode":
                 parse_faults(opts["faults"])
-            emulator, world = build_emulator(machine, record=opts["record"], faults=opts["faults"] or None)
+            emulator, world = build_emulator(machine, record=opts["record"], faults=opts["faults"] or None,
+                                             settings=opts["set"])
         except ValueError as exc:        # MachineFileError, SimulatorError, bad faults
             kind = "machine" if isinstance(exc, (MachineFileError, SimulatorError)) else "faults"
+            if str(exc).startswith("--set "):
+                kind, exc = "set", str(exc)[len("--set "):]
             raise SerialException(f"{FORM}: {kind}: {exc}") from None
         except OSError as exc:
             raise SerialException(f"{FORM}: record: {exc}") from None

@@ -32,17 +32,23 @@ class _Lines(click.ParamType):
               help="fitness: the paper's method; greedy: the ThreadTone baseline.")
 @click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
 @click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
-@click.option("--machine", default=None, help="Take the pin count from this machine (name or TOML path).")
+@click.option("--machine", default=None,
+              help="Take the pin count, ring diameter and thread width from this machine (name or TOML path).")
+@click.option("--diameter-mm", type=float, default=None,
+              help="Diameter of the pin circle (side of a square frame) in mm [default: 500, or the machine's].")
+@click.option("--thread-mm", type=float, default=None,
+              help="Width of the thread in mm [default: 0.25, or the machine's].")
 @click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
 @click.option("--start-pin", type=int, default=0, show_default=True)
-@click.option("--size", type=int, default=401, show_default=True, help="Working size in pixels.")
+@click.option("--size", type=int, default=None, help="Working size in pixels [default: 401; greedy: 1001, ThreadTone's].")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
               help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
-@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default="decolor", show_default=True,
-              help="Colour to gray: contrast-preserving decolorization or plain luminance.")
+@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
+              help="Colour to gray: contrast-preserving decolorization or plain luminance "
+                   "[default: decolor; greedy: luminance, ThreadTone's].")
 @click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
 @click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default=None,
               help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "
@@ -54,16 +60,17 @@ class _Lines(click.ParamType):
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
-def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame, crop, start_pin, size, lines,
-             importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache):
+@click.option("--force", is_flag=True,
+              help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
+def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, start_pin,
+             size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache, force):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
-    from .._files import check_not_same_file, check_output_path, write_atomic
+    from .._files import check_not_same_file, check_output_path, write_all_atomic
     from ..planner.build import plan_picture
     from ..planner.image import parse_crop
-    from ..planner.plan_file import write_plan
-    from ..planner.render import draw, png_bytes
+    from ..planner.render import draw_woven, png_bytes
 
     mach = None
     if machine is not None:
@@ -73,8 +80,20 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
         ring = mach.pins
         if pins is not None and pins != ring:
             raise BadInput(f"--pins {pins} differs from machine {machine!r} with {ring} pins; give one of them")
+        if frame != "circle":
+            raise BadInput(f"--frame {frame} with machine {machine!r}, which winds a ring; expected --frame circle "
+                           "(or leave out --machine)")
         pins = ring
+        for option, given, key in (("--diameter-mm", diameter_mm, "ring.diameter_mm"),
+                                   ("--thread-mm", thread_mm, "thread.diameter_mm")):
+            if given is not None and given != mach[key]:
+                raise BadInput(f"{option} {given:g} differs from machine {machine!r} ({key} = {mach[key]:g}); "
+                               "give one of them")
+        diameter_mm, thread_mm = mach["ring.diameter_mm"], mach["thread.diameter_mm"]
     pins = 300 if pins is None else pins
+    from ..planner.build import thread_model
+
+    thread_model(diameter_mm, thread_mm)  # bad sizes are refused before any work
     preview = preview or os.path.splitext(output)[0] + ".png"
     check_output_path(output, what="plan")
     check_output_path(preview, what="preview")
@@ -83,22 +102,35 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
             if src:
                 check_not_same_file(out, src, what=what, source_what=name)
     check_not_same_file(preview, output, what="preview", source_what="plan")
+    if not force:
+        _refuse_a_wound_plan(output)
     if lines != "auto" and lines <= 0:
         raise BadInput(f"--lines {lines}; expected a positive number or auto")
-    p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
-                     lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
-                     importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma, T=T,
-                     epsilon=epsilon, iterations=iterations, cache=not no_cache)
+    from ..planner.progress import reporting
+    from .progress import PlanProgress
+
+    shown = PlanProgress().start()
+    try:
+        with reporting(shown):
+            p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
+                             lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
+                             importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
+                             T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
+                             diameter_mm=diameter_mm, thread_mm=thread_mm)
+    finally:
+        shown.close()
     if machine is not None:
         p.parameters["machine"] = machine
-    png = png_bytes(draw(p, size=1001))
-    write_plan(p, output)
-    write_atomic(preview, png)
+    png = png_bytes(draw_woven(p, size=1001))
+    write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
-    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
-               f"diameters, {s['seconds']:.2f} s -> {output} (preview {preview})")
+    thread = f"{s['thread_diameters']:.1f} diameters"
+    if mach is not None:      # the frame's size is known: metres (chords only; the estimate adds the wraps)
+        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
+               f"{s['seconds']:.2f} s -> {output} (preview {preview})")
     if mach is not None:
         if not p.connected:
             click.echo(f"machine {mach.name}: a disconnected chord set cannot be wound; no machine-time estimate")
@@ -110,23 +142,43 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
                        f"{est.thread_m:.1f} m of thread")
 
 
+def _refuse_a_wound_plan(output):
+    """A plan whose journal has steps done is what a machine is (or was) winding: keep it."""
+    from ..winding.journal import journal_path_for, read_journal
+
+    journal = journal_path_for(output)
+    if not journal.is_file():
+        return
+    try:
+        state = read_journal(journal)
+    except BadInput:
+        return                         # not a journal we can read: nothing of ours to protect
+    if state.done:
+        where = "finished" if state.finished else f"{len(state.done)} of {state.steps_total} steps done"
+        raise BadInput(f"plan {output!r} has a winding journal {str(journal)!r} ({where}); overwriting the plan "
+                       "would orphan it: give another -o, or --force")
+
+
 @cli.command("render")
 @click.argument("plan", type=click.Path(path_type=str))
 @click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str), help="PNG to write.")
 @click.option("--size", type=int, default=1001, show_default=True, help="Side of the drawing in pixels.")
-def render_cmd(plan, output, size):
-    """Draw PLAN as black 1-pixel threads on white."""
+@click.option("--binary", is_flag=True,
+              help="The paper's drawing (black 1-pixel lines) instead of the threads as woven.")
+def render_cmd(plan, output, size, binary):
+    """Draw PLAN as woven: its threads at their real width (the plan's thread_mm on diameter_mm)."""
     from .._files import check_not_same_file, check_output_path, write_atomic
     from ..planner.plan_file import read_plan
-    from ..planner.render import draw, png_bytes
+    from ..planner.render import draw, draw_woven, png_bytes
 
     if not 16 <= size <= 8001:
         raise BadInput(f"--size {size}; expected 16..8001 pixels")
     check_output_path(output, what="drawing")
     check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
-    write_atomic(output, png_bytes(draw(p, size=size)))
-    click.echo(f"{len(p.chord_list())} chords drawn at {size} x {size} -> {output}")
+    write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
+    how = "as 1-pixel lines" if binary else f"as woven ({p.thread_mm:g} mm thread on {p.diameter_mm:g} mm)"
+    click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
 
 
 @cli.command("score")
@@ -134,13 +186,21 @@ def render_cmd(plan, output, size):
 @click.argument("image", required=False, type=click.Path(path_type=str))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
 def score_cmd(plan, image, as_json):
-    """SSIM of PLAN against IMAGE (default: the plan's source), as in the paper's section 4.1."""
+    """Score PLAN against IMAGE (default: the plan's source).
+
+    The paper's SSIM (section 4.1: 1-pixel chords at 1001 px, both at 201 px,
+    plain and blurred) with Wang et al.'s 11 x 11 Gaussian window and with
+    scikit-image's default 7 x 7 window, and the as-woven error (the plan
+    woven at 2048 px with a thread 1/2048 of the frame wide, box-filtered to
+    512 px, against the picture at 512 px, both blurred by sigma 2 px: RMS over
+    the frame, gray levels 0..1, lower is better).
+    """
     import json
     import os
 
     from ..planner.image import read_picture
     from ..planner.plan_file import read_plan
-    from ..planner.render import BLUR_SIGMA, SCORE_SIZE, score
+    from ..planner.scoring import BLUR_SIGMA, SCORE_SIZE, WOVEN_SIZE, score
 
     p = read_plan(plan)
     if image is None:
@@ -154,16 +214,22 @@ def score_cmd(plan, image, as_json):
     weights = p.parameters.get("gray_weights")
     if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):
         weights = None
-    pic = read_picture(image, size=SCORE_SIZE, crop=p.crop, weights=weights,
-                       gray=gray if gray in ("decolor", "luminance") else "decolor")
+    gray = gray if gray in ("decolor", "luminance") else "decolor"
+    pic = read_picture(image, size=SCORE_SIZE, crop=p.crop, weights=weights, gray=gray)
+    if weights is None:
+        weights = pic.weights
+    woven = read_picture(image, size=WOVEN_SIZE, crop=p.crop, weights=weights, gray=gray)
     if p.source.get("sha256") and p.source["sha256"] != pic.source["sha256"]:
         log.warning("%s is not the picture the plan was made from (sha256 differs)", image)
-    r = score(p, pic.gray)
+    r = score(p, pic.gray, woven_gray=woven.gray)
     if as_json:
         click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "connected": p.connected,
-                               "lines": r["lines"], "ssim": round(r["ssim"], 4),
-                               "ssim_blurred": round(r["ssim_blurred"], 4), "blur_sigma": BLUR_SIGMA}))
+                               "lines": r["lines"], **{k: round(v, 4) for k, v in r.items() if k != "lines"},
+                               "blur_sigma": BLUR_SIGMA}))
     else:
         click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} "
                    f"{p.method}{'' if p.connected else ' (disconnected)'}\n{'lines':<10} {r['lines']}\n"
-                   f"{'SSIM':<10} {r['ssim']:.4f}\n{'blurred':<10} {r['ssim_blurred']:.4f}")
+                   f"{'SSIM':<10} {r['ssim']:.4f}   (Gaussian 11x11 window; scikit-image default 7x7: "
+                   f"{r['ssim_uniform']:.4f})\n"
+                   f"{'blurred':<10} {r['ssim_blurred']:.4f}   (7x7: {r['ssim_uniform_blurred']:.4f})\n"
+                   f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)")

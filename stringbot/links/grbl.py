@@ -42,6 +42,7 @@ _RESET = b"\x18"
 _PROBE = "$G"                          # answered [GC:...] + ok, once every earlier line is done
 _PROBE_BYTES = len(_PROBE) + 1
 _GC = re.compile(r"^\[(GC:|G\d)")      # $G's answer (GRBL 1.1 / 0.9)
+_SETTING = re.compile(r"^\$(\d+)=(-?\d+(?:\.\d*)?)")
 
 
 def parse_status(line):
@@ -93,6 +94,7 @@ class GrblLink(LineLink):
         self._last_query = 0.0
         self._probe = None            # the Where of the $G probe in flight, if any
         self._probe_seen = False      # its [GC:...] arrived: every line before it is done
+        self.settings = None          # the firmware's $$ once read (read_settings)
 
     # ---- identification --------------------------------------------------------------
     def identify(self):
@@ -170,6 +172,32 @@ class GrblLink(LineLink):
                 deadline = min(deadline, time.monotonic() + 0.5)
                 continue
             lines.append(line)
+
+    def read_settings(self):
+        """``$$``: the firmware's settings as ``{number: value}`` (e.g. ``{100: 44.444, ...}``).
+
+        Sent between jobs (nothing in flight).  A firmware that answers none gives ``{}``.
+        """
+        settings = {}
+        for line in self._ask("$$", []):
+            m = _SETTING.match(line)
+            if m:
+                settings[int(m.group(1))] = float(m.group(2))
+        self.settings = settings
+        return settings
+
+    def query(self, text):
+        """Send ``text`` (``$$``, ``$I``) send-response; the lines answered before its ``ok``.
+
+        Call it only with nothing in flight (before streaming).  An ``error:N`` or
+        silence is a :class:`~stringbot.errors.MachineFailure` naming the query.
+        """
+        lines = self._ask(text, [])
+        if not lines or not lines[-1].startswith("ok"):
+            last = lines[-1] if lines else "nothing"
+            words = _error_words(_code(last)) if last.startswith("error") and _code(last) is not None else last
+            raise self.fail(f"the machine answered {text!r} with {words}")
+        return lines[:-1]
 
     # ---- state -----------------------------------------------------------------------
     def status(self, timeout=None):

@@ -11,8 +11,9 @@ Methods
     fitness is then close to its weighted mean darkness and next to no error
     is diffused, so large flat dark areas are filled).  ``auto`` (the
     default) plans both and keeps the drawing that scores higher by the
-    paper's own measure (section 4.1: SSIM plain plus blurred, see
-    :func:`stringbot.planner.render.score_chords`).  Giving beta, gamma or T
+    paper's own measure (section 4.1: SSIM plain plus blurred, with both the
+    Gaussian and the uniform window, summed, so that no one variant decides;
+    see :mod:`stringbot.planner.scoring`).  Giving beta, gamma or T
     means ``detail`` with those values.
 ``greedy``
     The ThreadTone baseline (see :mod:`stringbot.planner.greedy`).
@@ -25,13 +26,14 @@ import time
 import numpy as np
 
 from ..errors import BadInput
-from .chords import chord_pixels, chord_space, pixel_chords
+from .chords import chord_space, pixel_chords
 from .image import read_mask, read_picture
 from .plan_file import Plan
+from .progress import report
 
 log = logging.getLogger(__name__)
 
-__all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "DEFAULTS", "FILL", "STYLES",
+__all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "thread_model", "DEFAULTS", "FILL", "STYLES",
            "MAX_PINS"]
 
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").  beta, gamma and T are
@@ -40,6 +42,8 @@ DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, 
             "iterations": 25, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
+#: ThreadTone's working size: a picture of radius 500 px.
+GREEDY_SIZE = 1001
 MIN_SIZE, MAX_SIZE = 32, 2001
 MAX_LINES = 100_000
 METHODS = ("fitness", "greedy")
@@ -86,6 +90,21 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
                        "expected --style detail (or no --style) with them")
 
 
+def thread_model(diameter_mm=None, thread_mm=None):
+    """The :class:`~stringbot.planner.thread.ThreadModel` of the options; BadInput naming the one out of range."""
+    from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
+
+    d = DEFAULT_DIAMETER_MM if diameter_mm is None else diameter_mm
+    t = DEFAULT_THREAD_MM if thread_mm is None else thread_mm
+    for name, v, top in (("--diameter-mm", d, 100_000.0), ("--thread-mm", t, 100.0)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= top):
+            raise BadInput(f"{name} {v:g}; expected millimetres, a number > 0 and <= {top:g}")
+    if t * 20 > d:
+        raise BadInput(f"--thread-mm {t:g} is more than a 20th of --diameter-mm {d:g}; "
+                       "expected a thread much thinner than the frame")
+    return ThreadModel(diameter_mm=float(d), thread_mm=float(t))
+
+
 def style_candidates(style, *, beta=None, gamma=None, T=None):
     """The fitness knob settings to try.
 
@@ -122,11 +141,12 @@ def thread_length(pin_xy, chords):
     return float(np.linalg.norm(pin_xy[c[:, 0]] - pin_xy[c[:, 1]], axis=1).sum())
 
 
-def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="auto", start_pin=0,
-                 method="fitness", disconnected=False, importance=None, gray="decolor", style=None,
+def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines="auto", start_pin=0,
+                 method="fitness", disconnected=False, importance=None, gray=None, style=None,
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
-                 picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"]):
+                 picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
+                 diameter_mm=None, thread_mm=None):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -135,7 +155,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         The picture.
     pins, frame, size, crop, lines, start_pin, method, disconnected, importance, gray,
     alpha, epsilon, iterations
-        The knobs (see ``stringbot plan --help`` and docs/planner.md).
+        The knobs (see ``stringbot plan --help`` and docs/planner.md).  ``size``
+        None: 1001 for greedy (ThreadTone's own), else 401; ``gray`` None:
+        luminance for greedy (ThreadTone's), else decolor.
     style : {"auto", "detail", "fill"} or None
         Fitness only: which setting of beta, gamma and T (see the module
         notes); None is ``auto``.
@@ -154,6 +176,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     greedy_reference_radius : float or None
         Greedy only: the picture radius at which its weight of 15 holds
         (ThreadTone's 500); None applies 15 at the working size as it is.
+    diameter_mm, thread_mm : float or None
+        The frame's diameter and the thread's width (None: 500 mm and
+        0.25 mm), recorded in the plan; the default method plans with them.
 
     Returns
     -------
@@ -162,12 +187,18 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         method's own figures.
     """
     t0 = time.perf_counter()
+    if size is None:  # ThreadTone works on a 1001-px picture (imgRadius 500), the paper on 401 px
+        size = GREEDY_SIZE if method == "greedy" else DEFAULTS["size"]
+    if gray is None:  # ThreadTone grays by luminance (cv2.COLOR_BGR2GRAY), the paper by decolorization
+        gray = "luminance" if method == "greedy" else "decolor"
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin, method=method,
                 alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations, style=style)
+    model = thread_model(diameter_mm, thread_mm)
     if disconnected and method != "fitness":
         raise BadInput("--disconnected works with --method fitness only")
     if method == "greedy" and (style is not None or any(x is not None for x in (beta, gamma, T))):
         raise BadInput("--style, --beta, --gamma and -T are knobs of --method fitness; greedy has none of them")
+    report("reading the picture")
     pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
     weights = None
     if importance is not None:
@@ -178,15 +209,12 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     mask = frame_mask(size, frame)
     k = auto_lines(pic.gray, mask) if lines == "auto" else int(lines)
     space = chord_space(pins, frame)
-    if method == "greedy":
-        indptr, indices = chord_pixels(space, size, cache=cache)
-        nnz = len(indices)
-    else:
+    report("chords")
+    stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m)}
+    if method == "fitness":
         rowptr, chords_of_pixel = pixel_chords(space, size, cache=cache)
-        nnz = len(chords_of_pixel)
+        stats["pixels_per_chord"] = round(float(len(chords_of_pixel) / max(space.m, 1)), 2)
     t_chords = time.perf_counter()
-    stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m),
-             "pixels_per_chord": round(float(nnz / max(space.m, 1)), 2)}
     params = {"pins": pins, "frame": frame, "size": size, "crop": pic.crop, "lines": lines, "lines_target": k,
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
               "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
@@ -199,13 +227,14 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
               "min_loop": DEFAULTS["greedy_min_loop"], "reference_radius": greedy_reference_radius}
         scale = (size - 1) / 2 / greedy_reference_radius if greedy_reference_radius else 1.0
         params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
-        seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin, **gk)
+        report("greedy")
+        seq = greedy_sequence(space, size, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
         params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style or "auto")
         candidates = style_candidates(style, beta=beta, gamma=gamma, T=T)
         ref = None
         if len(candidates) > 1:
-            from .render import SCORE_SIZE
+            from .scoring import SCORE_SIZE
 
             ref = (reference.gray if reference is not None else pic.gray if picture is not None else
                    read_picture(path, size=SCORE_SIZE, crop=pic.crop, gray=gray, weights=pic.weights).gray)
@@ -230,7 +259,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
                  setup_seconds=round(t_chords - t0, 3), seconds=round(time.perf_counter() - t0, 3))
     if len(chord_list) < k:
         log.warning("%s stopped after %d of %d lines", method, len(chord_list), k)
-    return Plan(pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
+    return Plan(diameter_mm=model.diameter_mm, thread_mm=model.thread_mm,
+                pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
                 connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])])
 
@@ -248,10 +278,11 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
     list of dict
         Per candidate: ``style``, ``knobs``, ``seq`` (connected) or ``chords``
         (disconnected, else None), ``stats``, ``scores`` and ``rank``
-        (SSIM plus blurred SSIM against the picture; 0 for a single candidate).
+        (the sum of the four SSIM figures against the picture, both windows plain
+        and blurred; 0 for a single candidate).
     """
     from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
-    from .render import score_chords
+    from .scoring import SSIM_KEYS, score_chords
     from .sampling import fitness_table, sample_connected, sample_disconnected
 
     inv = 255.0 - pic.gray
@@ -266,10 +297,12 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
     runs = []
     for name, knobs in candidates:
         t = time.perf_counter()
+        report(f"solving ({name})")
         v = chord_weights(space, d, beta=knobs["beta"], gamma=knobs["gamma"])
         f, info = solve_fitness(rowptr, chords_of_pixel, b, w, v, iterations=iterations)
         t_solve = round(time.perf_counter() - t, 3)
         table = fitness_table(space, f, T=knobs["T"])
+        report(f"sampling ({name})")
         if disconnected:
             chords, seq = sample_disconnected(space, table, k, epsilon=epsilon), []
         else:
@@ -279,10 +312,11 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
                          "solve_seconds": t_solve,
                          "fitness_min": round(float(f.min()), 4), "fitness_max": round(float(f.max()), 4)}}
         if len(candidates) > 1:
+            report(f"scoring ({name})")
             drawn = chords if disconnected else list(zip(seq[:-1], seq[1:]))
             sc = score_chords(drawn, space.pin_xy, pic.gray if reference is None else reference, frame=space.frame)
-            run["scores"] = {"ssim": round(sc["ssim"], 4), "ssim_blurred": round(sc["ssim_blurred"], 4)}
-            run["rank"] = sc["ssim"] + sc["ssim_blurred"]
+            run["scores"] = {k: round(sc[k], 4) for k in SSIM_KEYS}
+            run["rank"] = sum(sc[k] for k in SSIM_KEYS)
             log.info("style %s: SSIM %.4f, blurred %.4f", name, sc["ssim"], sc["ssim_blurred"])
         runs.append(run)
     return runs
