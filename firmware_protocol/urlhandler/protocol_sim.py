@@ -195,6 +195,7 @@ class Serial(SerialBase):
         with self._session.lock:
             self._session.sync()
             self._session.bring_port_up()
+            self._session.emulator.port_opened()    # an Uno resets on DTR (reset_on_open)
         self._in.clear()
         self._dropped = False
         self.is_open = True
