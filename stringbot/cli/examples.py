@@ -36,6 +36,10 @@ Examples:
 Examples:
   stringbot machines show grbl-ring
   stringbot machines show grbl-ring > mine.toml && stringbot machines show ./mine.toml""",
+    "machines check": """\b
+Examples:
+  stringbot machines check grbl-ring                  (the simulated machine: all agree)
+  stringbot machines check grbl-ring --port /dev/ttyUSB0 --apply""",
     "gcode": """\b
 Examples:
   stringbot gcode camera.json --machine grbl-ring -o camera.gcode

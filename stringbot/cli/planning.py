@@ -28,23 +28,33 @@ class _Lines(click.ParamType):
               help="Plan file to write (JSON).")
 @click.option("--preview", type=click.Path(path_type=str), default=None,
               help="Preview PNG to write [default: the plan's path with .png].")
-@click.option("--method", type=click.Choice(["fitness", "greedy"]), default="fitness", show_default=True,
-              help="fitness: the paper's method; greedy: the ThreadTone baseline.")
+@click.option("--method", type=click.Choice(["residual", "fitness", "greedy"]), default="residual",
+              show_default=True,
+              help="residual: chords chosen by what the picture as woven still lacks, then refined; fitness: the "
+                   "paper's method; greedy: ThreadTone as published.")
 @click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
 @click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
-@click.option("--machine", default=None, help="Take the pin count from this machine (name or TOML path).")
+@click.option("--machine", default=None,
+              help="Take the pin count, ring diameter and thread width from this machine (name or TOML path).")
+@click.option("--diameter-mm", type=float, default=None,
+              help="Diameter of the pin circle (side of a square frame) in mm [default: 500, or the machine's].")
+@click.option("--thread-mm", type=float, default=None,
+              help="Width of the thread in mm [default: 0.25, or the machine's].")
 @click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True,
               help="Pins on a ring, or along the border of a square (a square is wound by hand: stringbot pins).")
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
-@click.option("--start-pin", type=int, default=0, show_default=True,
-              help="First pin of the sequence (pin 0 at the top, numbered clockwise).")
-@click.option("--size", type=int, default=401, show_default=True, help="Working size in pixels.")
+@click.option("--fit", is_flag=True, help="Paint the whole picture, letterboxed on the board, not its centre.")
+@click.option("--start-pin", type=int, default=None,
+              help="First pin (0 is at the top, numbered clockwise) [default: 0; greedy: pins / 4, ThreadTone's].")
+@click.option("--size", type=int, default=None, help="Working size in pixels [default: 401; greedy: 1001, ThreadTone's].")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
-              help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
+              help="Chords to draw; auto: residual stops when another thread would not improve the picture as "
+                   "woven; fitness and greedy: 500 + 10 (255 - mean gray).")
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
-@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default="decolor", show_default=True,
-              help="Colour to gray: contrast-preserving decolorization or plain luminance.")
+@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
+              help="Colour to gray: contrast-preserving decolorization or plain luminance "
+                   "[default: decolor; greedy: luminance, ThreadTone's].")
 @click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
 @click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default=None,
               help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "
@@ -55,18 +65,21 @@ class _Lines(click.ParamType):
               help="T of tanh(f / T): larger spreads chords out [detail: 30].")
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
+@click.option("--refine", type=int, default=300, show_default=True,
+              help="Residual: pins the refinement revisits (0: no refinement).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
-def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame, crop, start_pin, size, lines,
-             importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache, force):
+def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
+             start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
+             no_cache, force):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
     from .._files import check_not_same_file, check_output_path, write_all_atomic
     from ..planner.build import plan_picture
     from ..planner.image import parse_crop
-    from ..planner.render import draw, png_bytes
+    from ..planner.render import draw_woven, png_bytes
 
     mach = None
     if machine is not None:
@@ -80,7 +93,16 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
             raise BadInput(f"--frame {frame} with machine {machine!r}, which winds a ring; expected --frame circle "
                            "(or leave out --machine)")
         pins = ring
+        for option, given, key in (("--diameter-mm", diameter_mm, "ring.diameter_mm"),
+                                   ("--thread-mm", thread_mm, "thread.diameter_mm")):
+            if given is not None and given != mach[key]:
+                raise BadInput(f"{option} {given:g} differs from machine {machine!r} ({key} = {mach[key]:g}); "
+                               "give one of them")
+        diameter_mm, thread_mm = mach["ring.diameter_mm"], mach["thread.diameter_mm"]
     pins = 300 if pins is None else pins
+    from ..planner.build import thread_model
+
+    thread_model(diameter_mm, thread_mm)  # bad sizes are refused before any work
     preview = preview or os.path.splitext(output)[0] + ".png"
     check_output_path(output, what="plan")
     check_output_path(preview, what="preview")
@@ -102,19 +124,19 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
             p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
                              lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
                              importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
-                             T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache)
+                             T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
+                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine)
     finally:
         shown.close()
     if machine is not None:
         p.parameters["machine"] = machine
-    png = png_bytes(draw(p, size=1001))
+    png = png_bytes(draw_woven(p, size=1001))
     write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
-    thread = f"{s['thread_diameters']:.1f} diameters"
-    if mach is not None:      # the frame's size is known: metres (chords only; the estimate adds the wraps)
-        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    # the frame's size is known (--diameter-mm, the machine's, or the default): metres, chords only
+    thread = f"{s['thread_diameters'] * p.diameter_mm / 1000.0:.1f} m"
     click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
                f"{s['seconds']:.2f} s -> {output} (preview {preview})")
     if mach is not None:
@@ -149,19 +171,22 @@ def _refuse_a_wound_plan(output):
 @click.argument("plan", type=click.Path(path_type=str))
 @click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str), help="PNG to write.")
 @click.option("--size", type=int, default=1001, show_default=True, help="Side of the drawing in pixels.")
-def render_cmd(plan, output, size):
-    """Draw PLAN as black 1-pixel threads on white."""
+@click.option("--binary", is_flag=True,
+              help="The paper's drawing (black 1-pixel lines) instead of the threads as woven.")
+def render_cmd(plan, output, size, binary):
+    """Draw PLAN as woven: its threads at their real width (the plan's thread_mm on diameter_mm)."""
     from .._files import check_not_same_file, check_output_path, write_atomic
     from ..planner.plan_file import read_plan
-    from ..planner.render import draw, png_bytes
+    from ..planner.render import draw, draw_woven, png_bytes
 
     if not 16 <= size <= 8001:
         raise BadInput(f"--size {size}; expected 16..8001 pixels")
     check_output_path(output, what="drawing")
     check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
-    write_atomic(output, png_bytes(draw(p, size=size)), what="drawing")
-    click.echo(f"{len(p.chord_list())} chords drawn at {size} x {size} -> {output}")
+    write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
+    how = "as 1-pixel lines" if binary else f"as woven ({p.thread_mm:g} mm thread on {p.diameter_mm:g} mm)"
+    click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
 
 
 @cli.command("score")

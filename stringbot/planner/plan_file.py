@@ -7,6 +7,11 @@ A plan is JSON::
      "sequence": [0, 151, 17, ...], "method": "fitness", "parameters": {...},
      "source": {"path": .., "sha256": .., "width": .., "height": ..}, "stats": {...}}
 
+Optional since the thread model: ``diameter_mm`` (the frame's diameter, the
+side of a square frame) and ``thread_mm`` (the thread's width), from which
+``render`` draws the plan as woven; a plan without them is read with the
+defaults, 500 mm and 0.25 mm.
+
 A disconnected plan (``--disconnected``) has ``"connected": false`` and a chord
 set ``"chords": [[i, j], ...]`` instead of a sequence; it can be rendered and
 scored but not wound.  Unknown fields are ignored (kept in ``extra``); a wrong
@@ -23,6 +28,7 @@ import numpy as np
 
 from .._files import write_atomic
 from ..errors import BadInput
+from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
 
 __all__ = ["Plan", "read_plan", "write_plan", "FORMAT", "VERSION"]
 
@@ -58,6 +64,8 @@ class Plan:
         False for a chord set (``chords``) that cannot be wound.
     chords : list of (int, int)
         The chord set of a disconnected plan.
+    diameter_mm, thread_mm : float
+        The frame's diameter and the thread's width (see :mod:`stringbot.planner.thread`).
     """
 
     pins: int
@@ -72,6 +80,12 @@ class Plan:
     connected: bool = True
     chords: list = field(default_factory=list)
     extra: dict = field(default_factory=dict)
+    diameter_mm: float = DEFAULT_DIAMETER_MM
+    thread_mm: float = DEFAULT_THREAD_MM
+
+    def thread_model(self):
+        """The plan's :class:`~stringbot.planner.thread.ThreadModel`."""
+        return ThreadModel(diameter_mm=float(self.diameter_mm), thread_mm=float(self.thread_mm))
 
     def chord_list(self):
         """All chords as a list of ``(i, j)`` pairs, connected or not."""
@@ -86,6 +100,8 @@ class Plan:
             "version": VERSION,
             "pins": int(self.pins),
             "frame": self.frame,
+            "diameter_mm": float(self.diameter_mm),
+            "thread_mm": float(self.thread_mm),
             "pin_xy": [[round(float(x), 6), round(float(y), 6)] for x, y in np.asarray(self.pin_xy)],
             "crop": self.crop,
             "connected": bool(self.connected),
@@ -198,13 +214,22 @@ def plan_from_json(doc, *, where="plan"):
                     or c[0] == c[1]):
                 raise BadInput(f"{where}: chords[{k}] is {c!r}; expected [i, j] with i != j in 0..{pins - 1}")
             chords.append((c[0], c[1]))
+    size = {}
+    for key, default in (("diameter_mm", DEFAULT_DIAMETER_MM), ("thread_mm", DEFAULT_THREAD_MM)):
+        v = doc.get(key, default)
+        if not (_is_num(v) and v > 0):
+            raise BadInput(f"{where}: field {key!r} is {v!r}; expected a number of millimetres > 0")
+        size[key] = float(v)
+    if size["thread_mm"] >= size["diameter_mm"]:
+        raise BadInput(f"{where}: field 'thread_mm' ({size['thread_mm']:g}) is not less than 'diameter_mm' "
+                       f"({size['diameter_mm']:g}); expected a thread thinner than the frame")
     method = _need(doc, "method", str, where, "a string")
     parameters = _need(doc, "parameters", dict, where, "an object")
     source = _need(doc, "source", dict, where, "an object {path, sha256, width, height}")
     stats = _need(doc, "stats", dict, where, "an object")
     known = {"format", "version", "pins", "frame", "pin_xy", "crop", "connected", "sequence",
-             "chords", "method", "parameters", "source", "stats"}
+             "chords", "method", "parameters", "source", "stats", "diameter_mm", "thread_mm"}
     extra = {k: v for k, v in doc.items() if k not in known}
     return Plan(pins=pins, frame=frame, pin_xy=np.asarray(pin_xy, dtype=float), crop=crop,
                 sequence=list(sequence), method=method, parameters=parameters, source=source,
-                stats=stats, connected=connected, chords=chords, extra=extra)
+                stats=stats, connected=connected, chords=chords, extra=extra, **size)

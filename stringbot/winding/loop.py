@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 
 from ..errors import Interrupted, MachineFailure
+from ..links import LinkState
 from ..motion import move_seconds
 
 __all__ = ["WindState", "Progress", "WindResult", "Winder", "step_seconds"]
@@ -116,7 +117,7 @@ class Winder:
     def start(self, *, home):
         """Identify the firmware, check alarms, home if asked, set modal state."""
         self.state = WindState.CONNECTING
-        info = self.link.identify()
+        info = self.link.info if _identified(self.link) else self.link.identify()
         self.state = WindState.PREPARING
         with self.stopping_on_ctrl_c("while preparing (homing)"):
             self.link.prepare(home=home)
@@ -258,23 +259,26 @@ class Winder:
     def _failed(self, exc):
         self.state = WindState.FAILED
         self._catch_up()
+        settle = getattr(self.link, "settle_after_failure", None)
+        if settle is not None:
+            settle()
         self._stop_record("failed", str(exc), None)
 
     def _stop_record(self, reason, message, status):
         if self.journal is None:
             return
         step, pin = self._current()
-        pos = getattr(status, "mpos", None) if status is not None else None
+        pos = None
         point = None
         if hasattr(self.link, "stop_point"):
             try:
                 stop = self.link.stop_point()
                 point = {"step_index": stop["step_index"], "move": stop["move"]}
-                if pos is None:
-                    # a failure (no hold, no status): a link that knows its last trusted
-                    # position without I/O (a servo link's last reading with torque on)
-                    # gives it here; it is the resume's re-base hint after a power loss
-                    pos = stop.get("position")
+                # where the link last knew the machine without asking it now: a G-code link's
+                # position measured at rest with nothing sent since (the held position after
+                # Ctrl-C), a servo link's last reading with torque on; the resume's truth
+                # after a reboot or a power loss
+                pos = stop.get("position")
             except Exception:
                 point = None
         try:
@@ -291,3 +295,8 @@ def _firmware_name(link):
     if info is None:
         return "?"
     return f"{info.name} {info.version}".strip()
+
+
+def _identified(link):
+    """The link has just identified the firmware (e.g. for the settings check): no need to ask again."""
+    return getattr(link, "info", None) is not None and getattr(link, "state", None) is LinkState.IDENTIFIED
