@@ -2,8 +2,9 @@
 
 :class:`GcodeFirmware` owns the virtual clock and its events (motion blocks
 ending, a dwell ending, the port coming back), the coupling of the firmware's
-belief to the physical world (``physical = belief + offset`` on the ring and
-head axes), the port going down on a ``power`` or ``disconnect`` fault, and the
+belief to the physical world (``physical = belief * step_scale + offset`` on
+the ring and head axes, ``step_scale`` being the firmware's steps per unit
+over the build's: 1 when they agree), the port going down on a ``power`` or ``disconnect`` fault, and the
 line being executed as a *task*: a generator that yields a predicate to wait
 on (room in the planner, motion finished, a time reached) and returns its
 response.  GRBL and Marlin subclass it with their own line reader, parser and
@@ -65,6 +66,7 @@ class GcodeFirmware(Emulator):
         n = len(self.axes)
         self.motion = MotionQueue(planner_blocks, rates or [6000.0] * n, accels or [100.0] * n, [0.0] * n)
         self.offset = [0.0] * n
+        self.step_scale = [1.0] * n   # physical units per firmware unit: its steps/unit over the build's
         self.power = Power.ON
         self._out = bytearray()
         self._rx = bytearray()
@@ -111,6 +113,10 @@ class GcodeFirmware(Emulator):
                 break
         return dt
 
+    def _note(self, event, **detail):
+        """A notable event for the world's record (virtual time ``t`` added)."""
+        self.world.note(event, t=round(self.now, 6), **detail)
+
     def reconnect(self):
         """Run the clock until the port is back (no-op if it is up)."""
         if self._port_back_at is not None:
@@ -133,10 +139,34 @@ class GcodeFirmware(Emulator):
 
     def _move_world(self, points):
         for p in points:
-            ring = p[self.ring_i] + self.offset[self.ring_i]
-            head = p[self.head_i] + self.offset[self.head_i]
+            ring = self._to_physical(self.ring_i, p[self.ring_i])
+            head = self._to_physical(self.head_i, p[self.head_i])
             if (ring, head) != (self.world.ring_deg, self.world.head_mm):
                 self.world.move(ring, head)
+                if self.world.head_mm != head:
+                    # the head ran into its mechanical end: steps lost, the belief goes on without it
+                    self.offset[self.head_i] += self.world.head_mm - head
+
+    def _to_physical(self, i, belief):
+        """Where axis ``i`` physically is when the firmware believes ``belief``."""
+        return belief * self.step_scale[i] + self.offset[i]
+
+    def _set_step_scale(self, i, scale, *, keep_steps):
+        """A steps-per-unit setting of axis ``i`` changed (the motors have not moved).
+
+        ``keep_steps`` (GRBL): the firmware counts its position in steps, so the
+        position it reports changes; otherwise (Marlin) it keeps the position in
+        units and recounts the steps.
+        """
+        old, self.step_scale[i] = self.step_scale[i], scale
+        if scale == old:
+            return
+        position = list(self.motion.position)
+        if keep_steps:
+            position[i] *= old / scale
+            self.motion.set_position(position)
+        else:
+            self.offset[i] += position[i] * (old - scale)
 
     def _physical(self):
         return [self.world.ring_deg, self.world.head_mm]
@@ -154,6 +184,8 @@ class GcodeFirmware(Emulator):
         position = list(self.motion.position)
         position[self.ring_i], position[self.head_i] = self._physical()
         self.offset = [0.0] * len(self.axes)
+        for i in (self.ring_i, self.head_i):
+            self.offset[i] = position[i] * (1.0 - self.step_scale[i])
         self.motion.set_position(position)
         return position
 
@@ -164,7 +196,7 @@ class GcodeFirmware(Emulator):
         for i, value in ((self.head_i, home_head), (self.ring_i, home_ring)):
             if axes is None or self.axes[i] in axes:
                 pos = list(pos)
-                pos[i] = value - self.offset[i]
+                pos[i] = (value - self.offset[i]) / self.step_scale[i]
                 targets.append(tuple(pos))
         return targets
 
@@ -206,6 +238,7 @@ class GcodeFirmware(Emulator):
 
     def _port_down(self, power, seconds):
         log.info("fault: port down (%s) for %.2f s", power.value, seconds)
+        self._note("power off" if power is Power.OFF else "port down")
         self.power = power
         self.port_up = False
         self._out.clear()
@@ -221,6 +254,7 @@ class GcodeFirmware(Emulator):
         self._port_back_at = None
         self.power = Power.ON
         self.port_up = True
+        self._note("power on" if was_off else "port up")
         if was_off:
             self._power_on()
         log.info("port back up")

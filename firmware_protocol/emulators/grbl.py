@@ -25,7 +25,7 @@ import logging
 from ..grbl import UNLOCK_MESSAGE
 from .gcode_base import EPS, GcodeFirmware, Power, physical_home
 from .grbl_parser import GrblError, GrblParser, fmt
-from .grbl_system import GRBL, GRBLHAL, default_settings, format_settings, store_setting
+from .grbl_system import GRBL, GRBLHAL, build_steps, default_settings, format_settings, store_setting
 
 __all__ = ["GrblState", "GrblEmulator", "GrblHalEmulator", "physical_home", "Power"]
 
@@ -77,19 +77,24 @@ class GrblEmulator(GcodeFirmware):
         The physical machine (one is made from ``machine`` if not given).
     faults : str or list of Fault, optional
         See :mod:`firmware_protocol.faults`.
+    presets : list of firmware_protocol.settings.Preset
+        Settings stored before power-up (``stringbot simulate --set '$100=40'``).
     """
 
     variant = GRBL
 
-    def __init__(self, machine, *, world=None, faults=None):
+    def __init__(self, machine, *, world=None, faults=None, presets=()):
         self.base_axes = self.variant.base_axes
         super().__init__(machine, world=world, faults=faults, planner_blocks=self.variant.planner_blocks)
         self.settings = default_settings(self.variant, self.axes, machine)
+        self.build_steps = dict(zip((self.ring_i, self.head_i), build_steps(machine)))
         self.apply_settings()
         self.user_string = ""
         self.startup_lines = ["", ""]
         self.parser = GrblParser(self.axes)
         self.apply_settings()
+        for preset in presets:          # settings it was left with, before this power-up
+            self.preset(preset)
         self.state = GrblState.IDLE
         self._raw = bytearray()
         self._wco_counter = self._ovr_counter = 0
@@ -381,10 +386,26 @@ class GrblEmulator(GcodeFirmware):
         return [self.settings[120 + i] for i in range(len(self.axes))]
 
     def apply_settings(self):
-        """Axis rates and accelerations take effect for the blocks planned next."""
+        """Axis rates and accelerations take effect for the blocks planned next; steps per unit
+        at once (the position GRBL reports moves, the motors do not)."""
         self.motion.rates, self.motion.accels = self._rates(), self._accels()
+        for i, build in self.build_steps.items():
+            old = self.step_scale[i]
+            self._set_step_scale(i, self.settings[100 + i] / build, keep_steps=True)
+            if hasattr(self, "parser") and old != self.step_scale[i]:
+                self.parser.position[i] *= old / self.step_scale[i]
         if hasattr(self, "parser"):
             self.parser.arc_tolerance = self.settings[12]
+
+    def preset(self, preset):
+        """Start with a setting of ``--set`` (a :class:`~firmware_protocol.settings.Preset` of
+        ``(N, value)``), stored as ``$N=value`` would; ValueError with GRBL's words if refused."""
+        key, value = preset.value
+        code = self.store_setting(key, value)
+        if code:
+            from ..grbl import describe_error
+            raise ValueError(f"--set {preset.text!r}: the firmware answers error:{code} "
+                             f"({describe_error(code)})")
 
     def format_settings(self):
         return format_settings(self.settings)

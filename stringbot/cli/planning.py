@@ -67,16 +67,17 @@ class _Lines(click.ParamType):
 @click.option("--refine", type=int, default=300, show_default=True,
               help="Residual: pins the refinement revisits (0: no refinement).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
+@click.option("--force", is_flag=True,
+              help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
              start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
-             no_cache):
+             no_cache, force):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
-    from .._files import check_not_same_file, check_output_path, write_atomic
+    from .._files import check_not_same_file, check_output_path, write_all_atomic
     from ..planner.build import plan_picture
     from ..planner.image import parse_crop
-    from ..planner.plan_file import write_plan
     from ..planner.render import draw_woven, png_bytes
 
     mach = None
@@ -87,6 +88,9 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
         ring = mach.pins
         if pins is not None and pins != ring:
             raise BadInput(f"--pins {pins} differs from machine {machine!r} with {ring} pins; give one of them")
+        if frame != "circle":
+            raise BadInput(f"--frame {frame} with machine {machine!r}, which winds a ring; expected --frame circle "
+                           "(or leave out --machine)")
         pins = ring
         for option, given, key in (("--diameter-mm", diameter_mm, "ring.diameter_mm"),
                                    ("--thread-mm", thread_mm, "thread.diameter_mm")):
@@ -106,23 +110,35 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
             if src:
                 check_not_same_file(out, src, what=what, source_what=name)
     check_not_same_file(preview, output, what="preview", source_what="plan")
+    if not force:
+        _refuse_a_wound_plan(output)
     if lines != "auto" and lines <= 0:
         raise BadInput(f"--lines {lines}; expected a positive number or auto")
-    p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
-                     lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
-                     importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma, T=T,
-                     epsilon=epsilon, iterations=iterations, cache=not no_cache,
-                     diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine)
+    from ..planner.progress import reporting
+    from .progress import PlanProgress
+
+    shown = PlanProgress().start()
+    try:
+        with reporting(shown):
+            p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
+                             lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
+                             importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
+                             T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
+                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine)
+    finally:
+        shown.close()
     if machine is not None:
         p.parameters["machine"] = machine
     png = png_bytes(draw_woven(p, size=1001))
-    write_plan(p, output)
-    write_atomic(preview, png)
+    write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
-    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {s['thread_diameters']:.1f} "
-               f"diameters, {s['seconds']:.2f} s -> {output} (preview {preview})")
+    thread = f"{s['thread_diameters']:.1f} diameters"
+    if mach is not None:      # the frame's size is known: metres (chords only; the estimate adds the wraps)
+        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
+               f"{s['seconds']:.2f} s -> {output} (preview {preview})")
     if mach is not None:
         if not p.connected:
             click.echo(f"machine {mach.name}: a disconnected chord set cannot be wound; no machine-time estimate")
@@ -132,6 +148,23 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
             est = estimate(p, mach)
             click.echo(f"machine {mach.name}: about {format_duration(est.seconds)} of winding, "
                        f"{est.thread_m:.1f} m of thread")
+
+
+def _refuse_a_wound_plan(output):
+    """A plan whose journal has steps done is what a machine is (or was) winding: keep it."""
+    from ..winding.journal import journal_path_for, read_journal
+
+    journal = journal_path_for(output)
+    if not journal.is_file():
+        return
+    try:
+        state = read_journal(journal)
+    except BadInput:
+        return                         # not a journal we can read: nothing of ours to protect
+    if state.done:
+        where = "finished" if state.finished else f"{len(state.done)} of {state.steps_total} steps done"
+        raise BadInput(f"plan {output!r} has a winding journal {str(journal)!r} ({where}); overwriting the plan "
+                       "would orphan it: give another -o, or --force")
 
 
 @cli.command("render")
@@ -151,7 +184,7 @@ def render_cmd(plan, output, size, binary):
     check_output_path(output, what="drawing")
     check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
-    write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)))
+    write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
     how = "as 1-pixel lines" if binary else f"as woven ({p.thread_mm:g} mm thread on {p.diameter_mm:g} mm)"
     click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
 

@@ -5,7 +5,9 @@ import sys
 import click
 
 from ..errors import BadInput, Interrupted, MachineFailure
+from ..links.settings_check import SettingsDisagree
 from . import cli
+from .progress import fmt_s as _fmt_s
 
 
 def _resume_command(plan, machine_name, port, journal):
@@ -37,8 +39,13 @@ def _resume_command(plan, machine_name, port, journal):
               help="Show the journal's state and exit (without --port: the real winding's journal if any).")
 @click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
 @click.option("--realtime", is_flag=True, help="Dry run: the simulated machine moves at real speed.")
+@click.option("--progress-every", type=click.FloatRange(min=0.1), default=None, metavar="SECONDS",
+              help="Print a progress line (step, pin, elapsed, ETA) this often instead of the bar "
+                   "[default: the bar on a terminal, otherwise a line every 30 s].")
+@click.option("--no-check", "no_check", is_flag=True,
+              help="Do not compare the firmware's settings with the machine file before the first move.")
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
-         faults, realtime):
+         faults, realtime, progress_every, no_check):
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
     from ..winding import dry_run_problem, load_job, wind_plan
     from ..winding import resume as resuming
@@ -60,22 +67,9 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     def confirm(question):
         return click.confirm(question, default=True, err=True)
 
-    bar = None
-    state = {"last": 0}
+    from .progress import WindProgress
 
-    def progress(p):
-        nonlocal bar
-        if bar is None:
-            bar = click.progressbar(length=p.total, label="winding", show_eta=False, show_pos=True,
-                                    item_show_func=lambda _x: state.get("text"), file=sys.stderr)
-            bar.__enter__()
-            bar.update(p.done - 1)
-            state["last"] = p.done - 1
-        eta = _fmt_s(p.eta_s) if p.eta_s is not None else "?"
-        state["text"] = f"pin {p.pin}  ETA {eta}  (machine time left {_fmt_s(p.machine_s)})"
-        bar.update(p.done - state["last"])
-        state["last"] = p.done
-
+    progress = WindProgress(every=progress_every).start()
     try:
         if resume or from_step is not None:
             def choose(question, choices):
@@ -84,30 +78,33 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
                                           confirm=None if yes else confirm,
                                           choose=None if yes else choose, progress=progress)
         else:
-            result = wind_plan(job, confirm=None if yes else confirm, progress=progress)
+            result = wind_plan(job, confirm=None if yes else confirm, progress=progress, check=not no_check)
+    except SettingsDisagree as exc:     # nothing moved: no resume to offer
+        from .checking import refusal_lines
+        for line in refusal_lines(exc, machine_name, port):
+            click.echo(f"stringbot: error: {line}", err=True)
+        sys.exit(1)
     except (Interrupted, MachineFailure) as exc:
-        if bar is not None:
-            bar.__exit__(None, None, None)
         if port is None:
             raise  # a dry run cannot be resumed (its simulated machine ends with the command)
         raise type(exc)(f"{exc}; resume with: {again}") from None
-    if bar is not None:
-        bar.__exit__(None, None, None)
+    finally:
+        progress.close()
     problem = dry_run_problem(job)
     if problem:
         raise MachineFailure(problem)
-    wound = result.steps_done - (result.first_step - 1)
-    click.echo(f"wound {wound} pins (steps {result.first_step}-{result.steps_done} of {result.total}) "
-               f"in {_fmt_s(result.wall_s)} ({result.pins_per_second:.1f} pins/s); "
-               f"model machine time {_fmt_s(result.machine_s)}; firmware {result.firmware}; "
-               f"{result.lines_sent} lines sent; journal {result.journal}")
+    click.echo(_summary(result, job.machine))
 
 
-def _fmt_s(seconds):
-    seconds = int(round(seconds))
-    h, rest = divmod(seconds, 3600)
-    m, s = divmod(rest, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+def _summary(result, machine):
+    """What this run wound (a step the resume finished included), in one line."""
+    wound = max(0, result.steps_done - (result.first_step - 1))
+    steps = (f"steps {result.first_step}-{result.steps_done} of {result.total}" if wound
+             else f"all {result.total} steps were already done")
+    sent = "commands" if machine["controller.kind"] == "dynamixel" else "lines"
+    return (f"wound {wound} pins ({steps}) in {_fmt_s(result.wall_s)} ({result.pins_per_second:.1f} pins/s); "
+            f"model machine time {_fmt_s(result.machine_s)}; firmware {result.firmware}; "
+            f"{result.lines_sent} {sent} sent; journal {result.journal}")
 
 # == simulate command ==
 
@@ -122,19 +119,27 @@ def _fmt_s(seconds):
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
 @click.option("--faults", default=None, help="Faults to inject: kind@N,... (disconnect, reset, power, "
                                              "garble, drop-ok, error; N counts received lines).")
-def simulate(machine_name, pty_path, record, realtime, faults):
+@click.option("--set", "settings", multiple=True, metavar="SETTING",
+              help="Start the firmware with this setting instead of the machine file's (repeatable): "
+                   "'$100=40' (GRBL, grblHAL), 'M92 A40' (Marlin), 'ring:Drive Mode=1' (Dynamixel ID:ITEM=VALUE).")
+def simulate(machine_name, pty_path, record, realtime, faults, settings):
     """Serve the simulated machine on a pseudo-terminal until Ctrl-C."""
     from firmware_protocol.emulators.factory import build_emulator
     from firmware_protocol.machine import load_machine
     from firmware_protocol.pty import PtyPathError, PtyServer, check_pty_path
     machine = load_machine(machine_name)
+    if record is not None:
+        from .._files import check_output_path
+        check_output_path(record, what="--record")
     try:
         check_pty_path(pty_path)            # before the record file is written
     except PtyPathError as exc:
         raise BadInput(f"--pty: {exc}") from None
     try:
-        emulator, _world = build_emulator(machine, record=record, faults=faults)
+        emulator, _world = build_emulator(machine, record=record, faults=faults, settings=settings)
     except ValueError as exc:
+        if str(exc).startswith("--set "):
+            raise BadInput(str(exc)) from None
         raise BadInput(f"--faults {faults!r}: {exc}") from None
     except OSError as exc:
         raise BadInput(f"--record {record!r}: {exc.strerror or exc}") from None

@@ -42,6 +42,7 @@ _RESET = b"\x18"
 _PROBE = "$G"                          # answered [GC:...] + ok, once every earlier line is done
 _PROBE_BYTES = len(_PROBE) + 1
 _GC = re.compile(r"^\[(GC:|G\d)")      # $G's answer (GRBL 1.1 / 0.9)
+_SETTING = re.compile(r"^\$(\d+)=(-?\d+(?:\.\d*)?)")
 
 
 def parse_status(line):
@@ -93,6 +94,7 @@ class GrblLink(LineLink):
         self._last_query = 0.0
         self._probe = None            # the Where of the $G probe in flight, if any
         self._probe_seen = False      # its [GC:...] arrived: every line before it is done
+        self.settings = None          # the firmware's $$ once read (read_settings)
 
     # ---- identification --------------------------------------------------------------
     def identify(self):
@@ -170,6 +172,19 @@ class GrblLink(LineLink):
                 deadline = min(deadline, time.monotonic() + 0.5)
                 continue
             lines.append(line)
+
+    def read_settings(self):
+        """``$$``: the firmware's settings as ``{number: value}`` (e.g. ``{100: 44.444, ...}``).
+
+        Sent between jobs (nothing in flight).  A firmware that answers none gives ``{}``.
+        """
+        settings = {}
+        for line in self._ask("$$", []):
+            m = _SETTING.match(line)
+            if m:
+                settings[int(m.group(1))] = float(m.group(2))
+        self.settings = settings
+        return settings
 
     # ---- state -----------------------------------------------------------------------
     def status(self, timeout=None):

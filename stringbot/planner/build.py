@@ -29,6 +29,7 @@ from ..errors import BadInput
 from .chords import chord_space, pixel_chords
 from .image import read_mask, read_picture
 from .plan_file import Plan
+from .progress import report
 
 log = logging.getLogger(__name__)
 
@@ -218,6 +219,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         from .image import fit_crop
 
         crop = fit_crop(path, frame)
+    report("reading the picture")
     pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
     weights = None
     if importance is not None:
@@ -228,6 +230,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     mask = frame_mask(size, frame)
     k = (auto_lines(pic.gray, mask) if method != "residual" else None) if lines == "auto" else int(lines)
     space = chord_space(pins, frame)
+    report("chords")
     stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m)}
     if method == "fitness":
         rowptr, chords_of_pixel = pixel_chords(space, size, cache=cache)
@@ -250,6 +253,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
               "min_loop": DEFAULTS["greedy_min_loop"], "reference_radius": greedy_reference_radius}
         scale = (size - 1) / 2 / greedy_reference_radius if greedy_reference_radius else 1.0
         params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
+        report("greedy")
         seq = greedy_sequence(space, size, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
         params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style or "auto")
@@ -307,6 +311,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine)
     seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines)
     t_choose = time.perf_counter() - t
     err = canvas.error()
+    report("refining")
     seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
     area = float(w.sum())
     return seq, {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
@@ -346,10 +351,12 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
     runs = []
     for name, knobs in candidates:
         t = time.perf_counter()
+        report(f"solving ({name})")
         v = chord_weights(space, d, beta=knobs["beta"], gamma=knobs["gamma"])
         f, info = solve_fitness(rowptr, chords_of_pixel, b, w, v, iterations=iterations)
         t_solve = round(time.perf_counter() - t, 3)
         table = fitness_table(space, f, T=knobs["T"])
+        report(f"sampling ({name})")
         if disconnected:
             chords, seq = sample_disconnected(space, table, k, epsilon=epsilon), []
         else:
@@ -359,6 +366,7 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
                          "solve_seconds": t_solve,
                          "fitness_min": round(float(f.min()), 4), "fitness_max": round(float(f.max()), 4)}}
         if len(candidates) > 1:
+            report(f"scoring ({name})")
             drawn = chords if disconnected else list(zip(seq[:-1], seq[1:]))
             sc = score_chords(drawn, space.pin_xy, pic.gray if reference is None else reference, frame=space.frame)
             run["scores"] = {k: round(sc[k], 4) for k in SSIM_KEYS}

@@ -22,6 +22,7 @@ import logging
 import numpy as np
 
 from .chords import neighbour_offsets
+from .progress import report
 
 log = logging.getLogger(__name__)
 
@@ -104,7 +105,9 @@ def sample_connected(space, table, lines, *, epsilon=2, start_pin=0):
     diff = _Diffuser(space, epsilon)
     seq = [int(start_pin)]
     cur = int(start_pin)
-    for _ in range(int(lines)):
+    for n in range(int(lines)):
+        if n % 200 == 0:
+            report("sampling", n, int(lines))
         row = table[cur]
         nxt = int(np.argmax(row))
         value = row[nxt]
