@@ -220,7 +220,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
 
         crop = fit_crop(path, frame)
     report("reading the picture")
-    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
+    # greedy reads the picture as ThreadTone does: cv2.resize, bilinear
+    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng,
+                                  resample="bilinear" if method == "greedy" else "lanczos")
     weights = None
     if importance is not None:
         weights = read_mask(importance, size=size, crop=pic.crop,
