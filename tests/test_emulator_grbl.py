@@ -52,7 +52,8 @@ def test_ok_and_grbls_error_codes():
         (b"G1 Y5\n", b"error:22\r\n"),            # feed rate never set
         (b"G1 Y5 F600\n", OK),
         (b"G99\n", b"error:20\r\n"),              # unsupported command
-        (b"G0 X1.2.3\n", b"error:2\r\n"),         # bad number format
+        (b"G0 X1.2.3\n", b"error:1\r\n"),         # read_float stops at the 2nd '.', not a letter
+        (b"G0 X.\n", b"error:2\r\n"),            # bad number format: no digits
         (b"X\n", b"error:2\r\n"),
         (b"10\n", b"error:1\r\n"),                # expected command letter
         (b"G0 X1 X2\n", b"error:25\r\n"),         # repeated word
@@ -61,7 +62,16 @@ def test_ok_and_grbls_error_codes():
         (b"G0 A5\n", b"error:20\r\n"),            # stock GRBL has no A axis
         (b"G0 X1 P3\n", b"error:36\r\n"),         # unused value word
         (b"G92\n", b"error:26\r\n"),              # no axis words
-        (b"G59.1\n", b"error:29\r\n"),
+        (b"G59.1\n", b"error:23\r\n"),            # GRBL's code: G59 with a mantissa (its docs say 29)
+        (b"M999\n", b"error:23\r\n"),             # uint8 int_value 231, mantissa 11264: "not integer"
+        (b"M5.5\n", b"error:23\r\n"),
+        (b"M100\n", b"error:20\r\n"),
+        (b"G1.5 X1\n", b"error:23\r\n"),
+        (b"G43 Z1\n", b"error:20\r\n"),            # only G43.1
+        (b"G90.1\n", b"error:20\r\n"),
+        (b"G91.1\n", OK),                           # GRBL's only arc distance mode: accepted
+        (b"G300\n", b"error:20\r\n"),
+        (b"T300\n", b"error:38\r\n"),
         (b"G1 X5 F-3\n", b"error:4\r\n"),
         (b"N99999999 G0 X1\n", b"error:27\r\n"),
         (b"G4 P0\n", OK),                          # settings only when idle: wait for motion
@@ -92,8 +102,13 @@ def test_status_reports_follow_grbls_default_mask_and_refresh_counters():
         (b"$10=3\n", OK),
         (b"?", b"<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>\r\n"),
         (b"$10=0\n", OK),
-        (b"G10 L2 P1 X5\n", OK),
+        (b"G10 L2 P1 X5\n", OK),                   # a WCO change: the next report says so
+        (b"?", b"<Idle|WPos:-5.000,0.000,0.000|FS:0,0|WCO:5.000,0.000,0.000>\r\n"),
         (b"?", b"<Idle|WPos:-5.000,0.000,0.000|FS:0,0>\r\n"),
+        (b"G10 L2 P2 X7\n", OK),                   # G55 is not in use: no WCO change
+        (b"?", b"<Idle|WPos:-5.000,0.000,0.000|FS:0,0>\r\n"),
+        (b"G55\n", OK),
+        (b"?", b"<Idle|WPos:-7.000,0.000,0.000|FS:0,0|WCO:7.000,0.000,0.000>\r\n"),
     ])
     st = codec.parse_status("<Idle|MPos:1.000,2.000,0.000|Bf:15,128|FS:0,0|WCO:1.000,0.000,0.000>")
     assert st.state == "Idle" and st.mpos == (1.0, 2.0, 0.0) and st.wpos == (0.0, 2.0, 0.0)

@@ -276,6 +276,22 @@ class GrblEmulator(GcodeFirmware):
         return self._perform(action)
 
     def _perform(self, action):
+        if action.sync:
+            return self._synced_then(action)
+        return self._perform_now(action)
+
+    def _synced_then(self, action):
+        """GRBL's buffer sync before an EEPROM write or a WCO change; WCO: in the next report."""
+        while not self._synced():
+            yield self._synced
+        if action.wco:
+            self._wco_counter = 0
+        result = self._perform_now(action)
+        if hasattr(result, "send"):
+            result = yield from result
+        return result
+
+    def _perform_now(self, action):
         if action.kind == "move":
             return self._queue_moves([action.target], rapid=action.rapid, feed=action.feed,
                                      inverse=action.inverse_time, line_number=action.line_number)
@@ -316,6 +332,7 @@ class GrblEmulator(GcodeFirmware):
                                          inverse=False, line_number=action.line_number)
         while not self._synced():
             yield self._synced
+        self._wco_counter = 0
         self._emit("[MSG:Pgm End]")
         return 0
 
@@ -441,6 +458,20 @@ class GrblEmulator(GcodeFirmware):
             from ..grbl import describe_error
             raise ValueError(f"--set {preset.text!r}: the firmware answers error:{code} "
                              f"({describe_error(code)})")
+
+    def restore(self, what):
+        """``$RST=$``: settings back to the build's (the machine file's); ``$RST=#``: G54..G59,
+        G28 and G30 to 0; ``$RST=*``: both, the startup lines and the ``$I`` string too."""
+        if what in "$*":
+            self.settings = default_settings(self.variant, self.axes, self.machine)
+            self.apply_settings()
+        if what in "#*":
+            n = len(self.axes)
+            self.parser.coord_systems = [[0.0] * n for _ in range(6)]
+            self.parser.g28, self.parser.g30 = [0.0] * n, [0.0] * n
+        if what == "*":
+            self.startup_lines = ["", ""]
+            self.user_string = ""
 
     def format_settings(self):
         return format_settings(self.settings)
