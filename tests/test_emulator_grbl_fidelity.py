@@ -13,6 +13,17 @@ OK = b"ok\r\n"
 BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
 
 
+#: steps per unit of the bundled G-code machines' ring (44.4444/deg) and head (80/mm) axes:
+#: the simulated firmware stands and reports on whole steps
+RING_SPU, HEAD_SPU = 44.4444, 80.0
+HALF_RING_STEP = 0.5 / RING_SPU
+
+
+def on_step(x, spu=RING_SPU):
+    """``x`` on the nearest whole step, as the firmware plans it (``lround(x * steps)``)."""
+    return round(x * spu) / spu
+
+
 def emulator(machine="grbl-ring"):
     emu, world = build_emulator(machine)
     emu.transmit()
@@ -85,7 +96,7 @@ def test_jog_errors_come_in_grbls_order():
         (b"$J=G91G20X1F10\n", OK),                    # inches, like a G-code line
     ])
     assert drain(emu) == b""
-    assert world.ring_deg == pytest.approx(25.4)
+    assert world.ring_deg == on_step(25.4)
 
 
 def test_feed_hold_decelerates_in_hold_1_then_holds_in_hold_0():
@@ -93,15 +104,15 @@ def test_feed_hold_decelerates_in_hold_1_then_holds_in_hold_0():
     run_exchange(emu, [(b"G1 X100 F3000\n", OK)])           # 50 deg/s, 360 deg/s^2: cruising at t=0.5
     emu.advance(0.5)
     run_exchange(emu, [
-        (b"!?", b"<Hold:1|MPos:21.528,0.000,0.000|FS:3000,0|WCO:0.000,0.000,0.000>\r\n"),
+        (b"!?", b"<Hold:1|MPos:21.533,0.000,0.000|FS:3000,0|WCO:0.000,0.000,0.000>\r\n"),   # 957 steps
     ])
     emu.advance(0.1)
-    run_exchange(emu, [(b"?", b"<Hold:1|MPos:24.728,0.000,0.000|FS:840,0|Ov:100,100,100>\r\n")])
+    run_exchange(emu, [(b"?", b"<Hold:1|MPos:24.728,0.000,0.000|FS:840,0|Ov:100,100,100>\r\n")])  # 1099
     emu.advance(1.0)                                         # stopped 50^2 / (2 * 360) deg later
-    run_exchange(emu, [(b"?", b"<Hold:0|MPos:25.000,0.000,0.000|FS:0,0>\r\n"),
-                       (b"~?", b"<Run|MPos:25.000,0.000,0.000|FS:0,0>\r\n")])
+    run_exchange(emu, [(b"?", b"<Hold:0|MPos:24.998,0.000,0.000|FS:0,0>\r\n"),            # 1111 steps
+                       (b"~?", b"<Run|MPos:24.998,0.000,0.000|FS:0,0>\r\n")])
     assert drain(emu) == b""
-    assert world.ring_deg == 100.0
+    assert world.ring_deg == on_step(100.0)
 
 
 def test_offset_changes_wait_for_motion_and_report_wco_at_once():
@@ -111,13 +122,14 @@ def test_offset_changes_wait_for_motion_and_report_wco_at_once():
     emu.receive(b"G10 L20 P1 X0\n")                          # GRBL syncs before an EEPROM write
     assert emu.transmit() == b"" and not emu.motion.empty
     run_exchange(emu, [(b"", OK),
-                       (b"?", b"<Idle|MPos:10.000,0.000,0.000|FS:0,0|WCO:10.000,0.000,0.000>\r\n"),
-                       (b"?", b"<Idle|MPos:10.000,0.000,0.000|FS:0,0|Ov:100,100,100>\r\n"),
+                       # 444 steps; the offset comes from the parser's exact 10 (gc_state.position)
+                       (b"?", b"<Idle|MPos:9.990,0.000,0.000|FS:0,0|WCO:10.000,0.000,0.000>\r\n"),
+                       (b"?", b"<Idle|MPos:9.990,0.000,0.000|FS:0,0|Ov:100,100,100>\r\n"),
                        (b"G92 X1\n", OK),
-                       (b"?", b"<Idle|MPos:10.000,0.000,0.000|FS:0,0|WCO:9.000,0.000,0.000>\r\n"),
+                       (b"?", b"<Idle|MPos:9.990,0.000,0.000|FS:0,0|WCO:9.000,0.000,0.000>\r\n"),
                        (b"G92.1\n", OK),
-                       (b"?", b"<Idle|MPos:10.000,0.000,0.000|FS:0,0|WCO:10.000,0.000,0.000>\r\n")])
-    assert world.ring_deg == 10.0
+                       (b"?", b"<Idle|MPos:9.990,0.000,0.000|FS:0,0|WCO:10.000,0.000,0.000>\r\n")])
+    assert world.ring_deg == on_step(10.0)
 
 
 def test_restore_prints_its_message_answers_and_resets():
@@ -132,7 +144,7 @@ def test_restore_prints_its_message_answers_and_resets():
     run_exchange(emu, [(b"$RST=*\n", b"[MSG:Restoring defaults]\r\nok\r\n" + BANNER),
                        (b"$N\n", b"$N0=\r\n$N1=\r\nok\r\n"),
                        (b"$RST=x\n", b"error:3\r\n")])
-    assert world.ring_deg == 5.0                              # a reset moves nothing
+    assert world.ring_deg == on_step(5.0)                     # a reset moves nothing
 
 
 def test_error_codes_of_odd_words():
@@ -140,3 +152,26 @@ def test_error_codes_of_odd_words():
     run_exchange(emu, [(b"M999\n", b"error:23\r\n"), (b"G1 X1.2.3\n", b"error:1\r\n"),
                        (b"G10 L2.5 P1 X1\n", OK),           # L is read as GRBL's uint8: L2
                        (b"G28.2\n", b"error:20\r\n"), (b"G38.2 X1 F10\n", b"error:20\r\n")])
+
+
+def test_positions_are_whole_steps_as_the_firmware_counts_them():
+    """GRBL plans lround(target * $100) steps: G0 X5 at 44.4444 steps/deg is 222 steps, 4.995 deg,
+    and the world turns 4.995 deg too; the parser keeps the exact 5 (G10 L20 uses it)."""
+    emu, world = emulator()
+    run_exchange(emu, [(b"G0 X5 Y3.33\nG4 P0\n", OK + OK),
+                       (b"?", b"<Idle|MPos:4.995,3.325,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n"),
+                       (b"G10 L20 P1 X0\n", OK),
+                       (b"$10=0\n", OK),
+                       (b"?", b"<Idle|WPos:-0.005,3.325,0.000|FS:0,0|WCO:5.000,0.000,0.000>\r\n")])
+    assert (world.ring_deg, world.head_mm) == (222 / 44.4444, 266 / 80.0)
+    emu, world = emulator("grblhal-ring")
+    run_exchange(emu, [(b"$X\n", b"[MSG:Caution: Unlocked]\r\nok\r\n"), (b"G0 A0.01\nG4 P0\n", OK + OK)])
+    assert world.ring_deg == 1 / 88.8889                   # the nearest step of 0.889
+
+
+def test_whole_steps_can_be_turned_off_for_comparisons():
+    emu, world = build_emulator("grbl-ring")
+    emu.whole_steps = False
+    emu.transmit()
+    run_exchange(emu, [(b"G0 X5\nG4 P0\n", OK + OK)])
+    assert world.ring_deg == 5.0

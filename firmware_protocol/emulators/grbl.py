@@ -143,6 +143,7 @@ class GrblEmulator(GcodeFirmware):
     def _update_state(self):
         if self.state is GrblState.JOG and self._jog_cancelling and not self.motion.moving:
             self.motion.clear()
+            self._on_steps()
             self.parser.position = list(self.motion.position)
             self._jog_cancelling = False
         if self.state in (GrblState.RUN, GrblState.JOG) and self.motion.empty:
@@ -161,6 +162,7 @@ class GrblEmulator(GcodeFirmware):
         self.motion.clear()
         if wipe:
             self._wipe_belief()
+        self._on_steps()
         self.parser.reset(self.motion.position)
         self._rx.clear()
         self._raw.clear()
@@ -401,7 +403,7 @@ class GrblEmulator(GcodeFirmware):
         inches = bool(self.settings[13])
         dec = 4 if inches else 3
         k = 1 / 25.4 if inches else 1.0
-        pos = self.motion.position
+        pos = [self.whole_step(i, v) for i, v in enumerate(self.motion.position)]
         wco = self.parser.wco()
         mask = int(self.settings[10])
         if mask & 1:
@@ -430,6 +432,9 @@ class GrblEmulator(GcodeFirmware):
             if acc:
                 fields.append("A:" + acc)
         return "<" + "|".join([state] + fields) + ">"
+
+    def _steps_per_unit(self, i):
+        return self.settings.get(100 + i)
 
     def _rates(self):
         return [self.settings[110 + i] for i in range(len(self.axes))]
