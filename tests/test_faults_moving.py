@@ -293,3 +293,9 @@ def test_marlin_ignore_answers_ok_and_does_nothing():
                        (n(3, "M400"), b"ok\n"),
                        (n(4, "M114"), b"X:0.00 Y:0.00 Z:0.00 A:10.00 Count X:0 Y:0 Z:0 A:444\nok\n")])
     assert world.ring_deg == on_step(10.0)
+
+
+def test_a_plus_in_a_sim_url_is_a_plus():
+    from firmware_protocol.urlhandler.protocol_sim import parse_url
+    assert parse_url("sim://?faults=reset@230+0.4,ignore@9+")["faults"] == "reset@230+0.4,ignore@9+"
+    assert parse_url("sim://?record=my%20rec+1.json")["record"] == "my rec+1.json"
