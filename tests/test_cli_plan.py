@@ -50,7 +50,8 @@ def one_error_line(code, err, words):
 
 def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
     out = tmp_path / "p.json"
-    code, stdout, err = run("plan", picture, "-o", out, *SMALL, "--lines", "80", "--start-pin", "5")
+    code, stdout, err = run("plan", picture, "-o", out, *SMALL, "--lines", "80", "--start-pin", "5", "--method",
+                            "fitness")
     assert code == 0, err
     plan = read_plan(out)
     assert plan.pins == 60 and plan.sequence[0] == 5 and len(plan.sequence) == 81
@@ -71,7 +72,8 @@ def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
 @pytest.mark.parametrize("size", ["101", "251"])
 def test_auto_records_the_scores_that_score_gives(tmp_path, picture, size):
     out = tmp_path / "p.json"
-    code, _, err = run("plan", picture, "-o", out, "--pins", "60", "--size", size, "--lines", "120")
+    code, _, err = run("plan", picture, "-o", out, "--pins", "60", "--size", size, "--lines", "120", "--method",
+                       "fitness")
     assert code == 0, err
     plan = read_plan(out)
     kept = plan.stats["styles"][plan.parameters["style"]]
@@ -96,7 +98,7 @@ def test_greedy_square_crop_and_preview_path(tmp_path, picture):
 
 def test_disconnected_plan_renders_and_scores(tmp_path, picture):
     out = tmp_path / "d.json"
-    code, _, err = run("plan", picture, "-o", out, "--disconnected", "--lines", "60", *SMALL)
+    code, _, err = run("plan", picture, "-o", out, "--disconnected", "--lines", "60", *SMALL, "--method", "fitness")
     assert code == 0, err
     doc = json.loads(out.read_text())
     assert doc["connected"] is False and len(doc["chords"]) == 60 and doc["sequence"] == []
@@ -158,7 +160,7 @@ def test_machine_summary_has_the_machine_time_estimate(tmp_path, picture):
     assert code == 0 and len(stdout.strip().splitlines()) == 1 and "winding" not in stdout, stdout
     # a chord set cannot be wound: said so, no estimate
     code, stdout, err = run("plan", picture, "-o", out, "--machine", "grbl-ring", "--size", "151", "--lines", "40",
-                            "--disconnected")
+                            "--disconnected", "--method", "fitness")
     assert code == 0, err
     assert "cannot be wound" in stdout and "of winding" not in stdout, stdout
 

@@ -88,7 +88,7 @@ def machines_check_cmd(name, port, apply_fixes_, yes):
                                          err=True):
             _fail("nothing was sent")
         apply_fixes(link, machine, fixes)
-        after = check_link(link, machine)
+        after = check_link(link, machine, fresh=True)
         click.echo(f"sent {len(fixes)} line(s); the firmware now reports:")
         for line in report_lines(after):
             click.echo(line)

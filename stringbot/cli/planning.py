@@ -28,8 +28,10 @@ class _Lines(click.ParamType):
               help="Plan file to write (JSON).")
 @click.option("--preview", type=click.Path(path_type=str), default=None,
               help="Preview PNG to write [default: the plan's path with .png].")
-@click.option("--method", type=click.Choice(["fitness", "greedy"]), default="fitness", show_default=True,
-              help="fitness: the paper's method; greedy: the ThreadTone baseline.")
+@click.option("--method", type=click.Choice(["residual", "fitness", "greedy"]), default="residual",
+              show_default=True,
+              help="residual: chords chosen by what the picture as woven still lacks, then refined; fitness: the "
+                   "paper's method; greedy: ThreadTone as published.")
 @click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
 @click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
 @click.option("--machine", default=None,
@@ -40,10 +42,13 @@ class _Lines(click.ParamType):
               help="Width of the thread in mm [default: 0.25, or the machine's].")
 @click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
-@click.option("--start-pin", type=int, default=0, show_default=True)
+@click.option("--fit", is_flag=True, help="Paint the whole picture, letterboxed on the board, not its centre.")
+@click.option("--start-pin", type=int, default=None,
+              help="First pin (0 is at the top, numbered clockwise) [default: 0; greedy: pins / 4, ThreadTone's].")
 @click.option("--size", type=int, default=None, help="Working size in pixels [default: 401; greedy: 1001, ThreadTone's].")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
-              help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
+              help="Chords to draw; auto: residual stops when another thread would not improve the picture as "
+                   "woven; fitness and greedy: 500 + 10 (255 - mean gray).")
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
 @click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
@@ -59,11 +64,14 @@ class _Lines(click.ParamType):
               help="T of tanh(f / T): larger spreads chords out [detail: 30].")
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
+@click.option("--refine", type=int, default=300, show_default=True,
+              help="Residual: pins the refinement revisits (0: no refinement).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
-def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, start_pin,
-             size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache, force):
+def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
+             start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
+             no_cache, force):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
@@ -116,7 +124,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                              lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
                              importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
                              T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
-                             diameter_mm=diameter_mm, thread_mm=thread_mm)
+                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine)
     finally:
         shown.close()
     if machine is not None:

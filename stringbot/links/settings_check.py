@@ -2,7 +2,7 @@
 
 Over a link that is open (and identified here if it is not yet):
 
-- GRBL / grblHAL: ``$$`` (and ``$I``, which identification already asked);
+- GRBL / grblHAL: ``$$`` (identification reads it, after ``$I``);
 - Marlin: ``M503``;
 - Dynamixel: the control-table items of both servos (Operating Mode, Drive
   Mode, Velocity Limit, Position Limits) and their model numbers.
@@ -51,8 +51,11 @@ def _link_kind(machine):
     return "dynamixel" if machine["controller.kind"] == "dynamixel" else machine["controller.dialect"]
 
 
-def read_firmware(link, machine):
-    """The settings as the firmware reports them (see :func:`settings_rules.compare` for the forms)."""
+def read_firmware(link, machine, *, fresh=False):
+    """The settings as the firmware reports them (see :func:`settings_rules.compare` for the forms).
+
+    GRBL's ``$$`` as identification read it, unless ``fresh`` (after sending fixes).
+    """
     if link.info is None:
         link.identify()
     kind = _link_kind(machine)
@@ -67,12 +70,14 @@ def read_firmware(link, machine):
     proto = link.proto
     if kind == "marlin":
         return fs.parse_m503(proto.query("M503"))
-    return fs.parse_settings(proto.query("$$"))
+    if proto.settings is None or fresh:
+        proto.read_settings()
+    return dict(proto.settings)
 
 
-def check_link(link, machine):
+def check_link(link, machine, *, fresh=False):
     """Identify (if not yet), read the settings, compare them with ``machine``; -> Report."""
-    report = compare(machine, read_firmware(link, machine))
+    report = compare(machine, read_firmware(link, machine, fresh=fresh))
     report.firmware = f"{link.info.name} {link.info.version}".strip() if link.info else "?"
     log.info("firmware settings: %d compared with the machine file, %d disagree", len(report.rows),
              len(report.disagreements))
