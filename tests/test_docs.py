@@ -38,7 +38,9 @@ def runnable(line):
 
 
 def script(lines):
-    out = ["set -u", "cd \"$WORKDIR\""]
+    # whatever an example left in the background is stopped as Ctrl-C would, then for good
+    out = ["set -u", "cd \"$WORKDIR\"",
+           "stop_all() { kill -INT $(jobs -p) 2>/dev/null; sleep 1; kill -KILL $(jobs -p) 2>/dev/null; wait 2>/dev/null; }"]
     for line in lines:
         line = line.rstrip()
         cmd = runnable(line)
@@ -51,8 +53,8 @@ def script(lines):
             continue
         quoted = cmd.replace("'", "'\"'\"'")
         out.append(f"{cmd}\nrc=$?; if [ $rc -ne {want} ]; then echo 'EXAMPLE FAILED (exit '$rc'): {quoted}' >&2; "
-                   "kill $(jobs -p) 2>/dev/null; exit 1; fi")
-    out.append("kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; exit 0")
+                   "stop_all; exit 1; fi")
+    out.append("stop_all; exit 0")
     return "\n".join(out)
 
 
