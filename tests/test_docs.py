@@ -3,7 +3,7 @@
 The examples run (``-m slow``) in a fresh copy of the repository's files (what
 ``git clone`` gives: README, docs, examples, machines), in order: README first,
 then docs/ alphabetically, each block as a bash script.  A line ending in ``&``
-starts something in the background; a line with a ``# exit N`` comment must
+starts something in the background; a line whose ``#`` comment says ``exit N`` must
 exit N; every other line must exit 0.  The environment set-up of the quick
 start (venv, pip) is already done by the test run itself and is left out.
 """
@@ -46,7 +46,7 @@ def script(lines):
         cmd = runnable(line)
         if cmd is None or cmd.startswith("#"):
             continue
-        m = re.search(r"#\s*exit (\d+)", cmd)
+        m = re.search(r"#.*\bexit (\d+)", cmd)
         want = int(m.group(1)) if m else 0
         if cmd.endswith("&"):
             out.append(cmd)
