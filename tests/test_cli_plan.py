@@ -358,3 +358,11 @@ def test_machine_gives_the_ring_and_the_thread(tmp_path, picture):
     assert code == 0, err
     plan = read_plan(out)
     assert (plan.pins, plan.diameter_mm, plan.thread_mm) == (300, 500.0, 0.25)
+
+
+def test_the_recorded_frame_size_reaches_the_makers_commands(tmp_path, picture):
+    out = tmp_path / "p.json"
+    assert run("plan", picture, "-o", out, *SMALL, "--lines", "30", "--diameter-mm", "400")[0] == 0
+    code, stdout, err = run("pins", out, "-o", tmp_path / "pins.txt")
+    assert code == 0, err
+    assert "400 mm ring diameter, from the plan" in stdout, stdout

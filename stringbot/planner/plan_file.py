@@ -228,7 +228,8 @@ def plan_from_json(doc, *, where="plan"):
     source = _need(doc, "source", dict, where, "an object {path, sha256, width, height}")
     stats = _need(doc, "stats", dict, where, "an object")
     known = {"format", "version", "pins", "frame", "pin_xy", "crop", "connected", "sequence",
-             "chords", "method", "parameters", "source", "stats", "diameter_mm", "thread_mm"}
+             "chords", "method", "parameters", "source", "stats"}  # diameter_mm, thread_mm also stay in extra:
+    # whether the plan recorded them (not just the defaults) is for its readers to tell
     extra = {k: v for k, v in doc.items() if k not in known}
     return Plan(pins=pins, frame=frame, pin_xy=np.asarray(pin_xy, dtype=float), crop=crop,
                 sequence=list(sequence), method=method, parameters=parameters, source=source,
