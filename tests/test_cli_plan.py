@@ -343,7 +343,8 @@ def test_old_plans_without_thread_fields_still_read(tmp_path, picture):
     del doc["diameter_mm"], doc["thread_mm"]
     out.write_text(json.dumps(doc))
     plan = read_plan(out)
-    assert (plan.diameter_mm, plan.thread_mm) == (500.0, 0.25)
+    assert (plan.diameter_mm, plan.thread_mm) == (None, None)  # not recorded: drawn with 500 / 0.25
+    assert (plan.thread_model().diameter_mm, plan.thread_model().thread_mm) == (500.0, 0.25)
     code, _, err = run("render", out, "-o", tmp_path / "r.png", "--size", "101")
     assert code == 0, err
     doc["thread_mm"] = 0
