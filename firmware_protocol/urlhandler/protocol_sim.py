@@ -91,7 +91,9 @@ def parse_url(url):
         raise SerialException(f"{FORM}: unexpected {parts.netloc + parts.path!r} before the '?'")
     opts = {"machine": "grbl-ring", "record": None, "realtime": False, "faults": "", "set": []}
     try:
-        query = urllib.parse.parse_qs(parts.query, keep_blank_values=True, strict_parsing=bool(parts.query))
+        # a '+' is a plus (reset@230+0.4, a file name), never a space: write a space as %20
+        query = urllib.parse.parse_qs(parts.query.replace("+", "%2B"), keep_blank_values=True,
+                                      strict_parsing=bool(parts.query))
     except ValueError as exc:
         raise SerialException(f"{FORM}: {exc}") from None
     for option, values in query.items():
@@ -195,6 +197,7 @@ class Serial(SerialBase):
         with self._session.lock:
             self._session.sync()
             self._session.bring_port_up()
+            self._session.emulator.port_opened()    # an Uno resets on DTR (reset_on_open)
         self._in.clear()
         self._dropped = False
         self.is_open = True
