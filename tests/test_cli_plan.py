@@ -65,7 +65,8 @@ def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
     assert preview.size == (1001, 1001)
     line = stdout.strip()
     assert "\n" not in line
-    for part in (f"fitness ({plan.parameters['style']}):", "60 pins", "80 lines", "diameters", f"{plan.stats['thread_diameters']:.1f}", " s "):
+    metres = plan.stats["thread_diameters"] * plan.diameter_mm / 1000   # the issue: metres, not diameters
+    for part in (f"fitness ({plan.parameters['style']}):", "60 pins", "80 lines", f"thread {metres:.1f} m", " s "):
         assert part in line, line
 
 
