@@ -206,7 +206,7 @@ def test_sim_url_takes_set_any_number_of_times(tmp_path):
     from firmware_protocol import urlhandler
     from firmware_protocol.urlhandler import protocol_sim
     urlhandler.register()
-    url = f"sim://?machine=marlin-ring&set=M92+A40&set=M211+S0&record={tmp_path / 'r.json'}"
+    url = f"sim://?machine=marlin-ring&set=M92%20A40&set=M211%20S0&record={tmp_path / 'r.json'}"
     assert protocol_sim.parse_url(url)["set"] == ["M92 A40", "M211 S0"]
     try:
         port = serial.serial_for_url(url, timeout=0.05)
