@@ -91,7 +91,9 @@ def parse_url(url):
         raise SerialException(f"{FORM}: unexpected {parts.netloc + parts.path!r} before the '?'")
     opts = {"machine": "grbl-ring", "record": None, "realtime": False, "faults": "", "set": []}
     try:
-        query = urllib.parse.parse_qs(parts.query, keep_blank_values=True, strict_parsing=bool(parts.query))
+        # a '+' is a plus (reset@230+0.4, a file name), never a space: write a space as %20
+        query = urllib.parse.parse_qs(parts.query.replace("+", "%2B"), keep_blank_values=True,
+                                      strict_parsing=bool(parts.query))
     except ValueError as exc:
         raise SerialException(f"{FORM}: {exc}") from None
     for option, values in query.items():
@@ -116,21 +118,10 @@ def parse_url(url):
                 raise SerialException(f"{FORM}: realtime={value!r}; expected 0 or 1")
             opts["realtime"] = value == "1"
         elif option == "faults":
-            opts["faults"] = _raw_faults(parts.query)
+            opts["faults"] = value
         else:
             raise SerialException(f"{FORM}: unknown option {option!r}")
     return opts
-
-
-def _raw_faults(query):
-    """The faults option with a '+' kept a plus (``reset@230+0.4`` typed by hand); a '+' that
-    stands for a space (``urlencode``'s, after a comma) is dropped."""
-    for part in query.split("&"):
-        name, _, value = part.partition("=")
-        if urllib.parse.unquote_plus(name) == "faults":
-            items = urllib.parse.unquote(value).split(",")
-            return ",".join(item.strip().lstrip("+").strip() for item in items)
-    return ""
 
 
 def session(url):
