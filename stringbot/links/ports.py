@@ -98,4 +98,11 @@ def _explain(url, exc):
         first = text.splitlines()[0] if text else type(exc).__name__
         return BadInput(f"port {url!r} is not a usable URL: {first}")
     first = text.splitlines()[0] if text else type(exc).__name__
+    if code == errno.ECONNREFUSED or "refused" in low:
+        return MachineFailure(f"port {url!r} refused the connection: check that the serial server there "
+                              "(e.g. ser2net) runs and listens on that host and port number")
+    if code in (errno.ETIMEDOUT, errno.EHOSTUNREACH, errno.ENETUNREACH) or "timed out" in low \
+            or "unreachable" in low:
+        return MachineFailure(f"port {url!r} could not be reached ({first}): check the host name, the "
+                              "network and that the serial server is on")
     return MachineFailure(f"could not open port {url!r}: {first}")
