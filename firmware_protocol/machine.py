@@ -21,7 +21,7 @@ __all__ = [
 ]
 
 #: Axis letters each dialect can drive.
-AXES = {"grbl": "XYZ", "grblhal": "XYZABC", "marlin": "XYZABC"}
+AXES = {"grbl": "XYZ", "grblhal": "XYZABC", "fluidnc": "XYZABC", "marlin": "XYZABC"}
 
 
 class MachineFileError(ValueError):
@@ -102,7 +102,7 @@ SCHEMA = {
     },
     "controller": {
         "kind": _Key(str, choices=("gcode", "dynamixel")),
-        "dialect": _Key(str, None, choices=("grbl", "grblhal", "marlin")),
+        "dialect": _Key(str, None, choices=("grbl", "grblhal", "fluidnc", "marlin")),
         "ring_axis": _Key(str, None),
         "head_axis": _Key(str, None),
         "baud": _Key(int, 115200, lo=1200, hi=4_000_000),
@@ -393,7 +393,7 @@ def _check_consistency(m, source):
         dialect = v["controller.dialect"]
         if dialect is None:
             raise MachineFileError(f"{source}: controller.dialect is missing; expected one of "
-                                   f"'grbl', 'grblhal', 'marlin' for kind = 'gcode'")
+                                   f"'grbl', 'grblhal', 'fluidnc', 'marlin' for kind = 'gcode'")
         for key in ("controller.ring_axis", "controller.head_axis"):
             axis = v[key]
             if axis is None or len(axis) != 1 or axis not in AXES[dialect]:

@@ -165,6 +165,8 @@ class PtyServer:
                 time.sleep(0 if fast_busy else min(timeout, 0.01))
         elif self._client_since is None:
             self._client_since = time.monotonic()
+            if emu.port_opened():           # an Uno resets on DTR: what it said before is gone
+                self._pending.clear()
         if flags & select.POLLIN and not flags & select.POLLHUP:
             try:
                 data = os.read(self.master, 4096)

@@ -50,7 +50,8 @@ def one_error_line(code, err, words):
 
 def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
     out = tmp_path / "p.json"
-    code, stdout, err = run("plan", picture, "-o", out, *SMALL, "--lines", "80", "--start-pin", "5")
+    code, stdout, err = run("plan", picture, "-o", out, *SMALL, "--lines", "80", "--start-pin", "5", "--method",
+                            "fitness")
     assert code == 0, err
     plan = read_plan(out)
     assert plan.pins == 60 and plan.sequence[0] == 5 and len(plan.sequence) == 81
@@ -64,14 +65,16 @@ def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
     assert preview.size == (1001, 1001)
     line = stdout.strip()
     assert "\n" not in line
-    for part in (f"fitness ({plan.parameters['style']}):", "60 pins", "80 lines", "diameters", f"{plan.stats['thread_diameters']:.1f}", " s "):
+    metres = plan.stats["thread_diameters"] * plan.diameter_mm / 1000   # the issue: metres, not diameters
+    for part in (f"fitness ({plan.parameters['style']}):", "60 pins", "80 lines", f"thread {metres:.1f} m", " s "):
         assert part in line, line
 
 
 @pytest.mark.parametrize("size", ["101", "251"])
 def test_auto_records_the_scores_that_score_gives(tmp_path, picture, size):
     out = tmp_path / "p.json"
-    code, _, err = run("plan", picture, "-o", out, "--pins", "60", "--size", size, "--lines", "120")
+    code, _, err = run("plan", picture, "-o", out, "--pins", "60", "--size", size, "--lines", "120", "--method",
+                       "fitness")
     assert code == 0, err
     plan = read_plan(out)
     kept = plan.stats["styles"][plan.parameters["style"]]
@@ -96,7 +99,7 @@ def test_greedy_square_crop_and_preview_path(tmp_path, picture):
 
 def test_disconnected_plan_renders_and_scores(tmp_path, picture):
     out = tmp_path / "d.json"
-    code, _, err = run("plan", picture, "-o", out, "--disconnected", "--lines", "60", *SMALL)
+    code, _, err = run("plan", picture, "-o", out, "--disconnected", "--lines", "60", *SMALL, "--method", "fitness")
     assert code == 0, err
     doc = json.loads(out.read_text())
     assert doc["connected"] is False and len(doc["chords"]) == 60 and doc["sequence"] == []
@@ -158,7 +161,7 @@ def test_machine_summary_has_the_machine_time_estimate(tmp_path, picture):
     assert code == 0 and len(stdout.strip().splitlines()) == 1 and "winding" not in stdout, stdout
     # a chord set cannot be wound: said so, no estimate
     code, stdout, err = run("plan", picture, "-o", out, "--machine", "grbl-ring", "--size", "151", "--lines", "40",
-                            "--disconnected")
+                            "--disconnected", "--method", "fitness")
     assert code == 0, err
     assert "cannot be wound" in stdout and "of winding" not in stdout, stdout
 
@@ -341,7 +344,8 @@ def test_old_plans_without_thread_fields_still_read(tmp_path, picture):
     del doc["diameter_mm"], doc["thread_mm"]
     out.write_text(json.dumps(doc))
     plan = read_plan(out)
-    assert (plan.diameter_mm, plan.thread_mm) == (500.0, 0.25)
+    assert (plan.diameter_mm, plan.thread_mm) == (None, None)  # not recorded: drawn with 500 / 0.25
+    assert (plan.thread_model().diameter_mm, plan.thread_model().thread_mm) == (500.0, 0.25)
     code, _, err = run("render", out, "-o", tmp_path / "r.png", "--size", "101")
     assert code == 0, err
     doc["thread_mm"] = 0
@@ -356,3 +360,11 @@ def test_machine_gives_the_ring_and_the_thread(tmp_path, picture):
     assert code == 0, err
     plan = read_plan(out)
     assert (plan.pins, plan.diameter_mm, plan.thread_mm) == (300, 500.0, 0.25)
+
+
+def test_the_recorded_frame_size_reaches_the_makers_commands(tmp_path, picture):
+    out = tmp_path / "p.json"
+    assert run("plan", picture, "-o", out, *SMALL, "--lines", "30", "--diameter-mm", "400")[0] == 0
+    code, stdout, err = run("pins", out, "-o", tmp_path / "pins.txt")
+    assert code == 0, err
+    assert "400 mm ring diameter, from the plan" in stdout, stdout

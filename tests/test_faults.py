@@ -6,12 +6,21 @@ from firmware_protocol import marlin as mc
 from firmware_protocol.emulators.factory import build_emulator
 from firmware_protocol.emulators.grbl import GrblState
 from firmware_protocol.emulators.testing import run_exchange
-from firmware_protocol.faults import DISCONNECT_SECONDS, POWER_OFF_SECONDS, Fault, FaultPlan, parse_faults
+from firmware_protocol.faults import (BOOT_SECONDS, DISCONNECT_SECONDS, POWER_OFF_SECONDS, Fault, FaultPlan,
+                                      parse_faults)
 
 pytestmark = pytest.mark.timeout(30)
 
 BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
 OK = b"ok\r\n"
+
+
+def on_step(x, spu=44.4444):
+    """``x`` on the nearest whole step of grbl-ring's ring axis (the firmware counts steps)."""
+    return round(x * spu) / spu
+
+
+HALF_STEP = 0.5 / 44.4444
 
 
 def grbl(faults, machine="grbl-ring"):
@@ -31,29 +40,33 @@ def test_parse_faults_and_the_plan_counts_lines():
     assert str(plan) == "" and len(plan.fired) == 3
 
 
-def test_grbl_reset_while_moving_alarms_and_wipes_the_belief_not_the_world():
+def test_grbl_reset_while_moving_alarms_pauses_and_keeps_the_position():
     emu, world = grbl("reset@3")
     run_exchange(emu, [(b"G0 X90\n", OK), (b"\n", OK)])        # empty lines count too
     emu.advance(0.5)
     moved = world.ring_deg
     assert 0 < moved < 90
-    run_exchange(emu, [(b"G0 Y5\n", b"ALARM:3\r\n" + BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n")])
-    assert emu.state is GrblState.ALARM
+    emu.receive(b"G0 Y5\n")
+    assert emu.transmit() == b"ALARM:3\r\n"
+    emu.receive(b"?$X\n")                                     # lost in GRBL's 0.5 s pause
+    assert emu.next_event_in() == pytest.approx(0.5)
+    run_exchange(emu, [(b"", BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n")])
+    assert emu.state is GrblState.ALARM and emu.now == pytest.approx(1.0)
     emu.advance(10.0)
     assert world.ring_deg == moved                            # stopped where it was; Y5 never ran
     run_exchange(emu, [
-        (b"?", b"<Alarm|MPos:0.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n"),
+        (b"?", f"<Alarm|MPos:{moved:.3f},0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n".encode()),
         (b"$X\n", b"[MSG:Caution: Unlocked]\r\nok\r\n"),
         (b"G0 X1\nG4 P0\n", OK + OK),
     ])
-    assert world.ring_deg == pytest.approx(moved + 1.0)      # the belief is offset from the world now
+    assert world.ring_deg == on_step(1.0)                     # the belief is still the world
 
 
 def test_grbl_reset_when_idle_has_no_alarm():
     emu, world = grbl("reset@3")
     run_exchange(emu, [(b"G0 X5\nG4 P0\n", OK + OK), (b"G0 X0\n", BANNER),
-                       (b"?", b"<Idle|MPos:0.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n")])
-    assert world.ring_deg == 5.0
+                       (b"?", b"<Idle|MPos:4.995,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n")])
+    assert world.ring_deg == on_step(5.0)
 
 
 def test_grbl_power_loss_drops_the_port_and_restarts_later():
@@ -82,7 +95,7 @@ def test_grbl_disconnect_loses_the_line_but_the_firmware_runs_on():
     emu.reconnect()
     assert emu.port_up and emu.now == pytest.approx(DISCONNECT_SECONDS)
     run_exchange(emu, [(b"G4 P0\n", OK)])
-    assert world.ring_deg == 30.0
+    assert world.ring_deg == on_step(30.0)
 
 
 def test_grbl_garble_error_and_drop_ok():
@@ -93,7 +106,7 @@ def test_grbl_garble_error_and_drop_ok():
         (b"G0 X30\n", b""),                     # executed, ok lost
         (b"G4 P0\n", OK),
     ])
-    assert world.ring_deg == 30.0
+    assert world.ring_deg == on_step(30.0)
 
 
 def test_grblhal_power_fault_through_the_factory():
@@ -118,8 +131,10 @@ def test_marlin_faults():
     ])
     assert world.head_mm == 11.0               # belief -9 + the head's power-up position 20
     emu.receive(n(3, "G0 Y18"))
-    out = emu.transmit()
-    assert out.startswith(b"start\n")           # the firmware reset: line numbers start again
+    assert emu.transmit() == b""                 # Marlin's reset is a restart: a moment of silence
+    assert emu.next_event_in() == pytest.approx(BOOT_SECONDS)
+    emu.advance(None)
+    assert emu.transmit().startswith(b"start\n")  # the firmware restarted: line numbers start again
     run_exchange(emu, [(n(1, "M114"), b"X:0.00 Y:0.00 Z:0.00 A:0.00 Count X:0 Y:0 Z:0 A:0\nok\n")])
     assert world.head_mm == 11.0               # the thread and the axes stay put
 

@@ -250,7 +250,7 @@ def test_solve_matches_dense_least_squares():
 
 def test_fitness_is_high_on_chords_through_the_dark_bar():
     size = 101
-    plan = plan_picture("x", pins=60, size=size, lines=60, picture=picture(bar_picture(size)))
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=60, picture=picture(bar_picture(size)))
     xy = plan.pin_xy
     # chords that run along the bar (both ends near its height) dominate the sequence
     mids = np.array([(xy[a, 1] + xy[b, 1]) / 2 for a, b in plan.chord_list()])
@@ -267,7 +267,7 @@ def test_auto_lines_follows_the_paper():
 def test_plan_records_every_knob_and_the_stats():
     size = 101
     pic = picture(bar_picture(size))
-    plan = plan_picture("x", pins=60, size=size, lines=50, start_pin=7, alpha=0.25, beta=4.0, gamma=8.0,
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=50, start_pin=7, alpha=0.25, beta=4.0, gamma=8.0,
                         T=20.0, epsilon=1, iterations=15, picture=pic)
     assert plan.sequence[0] == 7 and len(plan.sequence) == 51 and plan.connected
     p = plan.parameters
@@ -285,9 +285,9 @@ def test_fitness_beats_a_random_sequence_on_ssim():
     size = 101
     gray = bar_picture(size)
     pic = picture(gray)
-    plan = plan_picture("x", pins=60, size=size, lines=80, picture=pic)
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=80, picture=pic)
     rng = np.random.default_rng(0)
-    rand = plan_picture("x", pins=60, size=size, lines=80, picture=pic)
+    rand = plan_picture("x", method="fitness", pins=60, size=size, lines=80, picture=pic)
     seq = [0]
     for _ in range(80):
         seq.append(int((seq[-1] + rng.integers(1, 60)) % 60))
@@ -317,13 +317,13 @@ def test_blank_picture_is_refused(method):
 
 
 def test_tiny_ring_runs_out_of_chords_gracefully():
-    plan = plan_picture("x", pins=3, size=101, lines=10, picture=picture(bar_picture()))
+    plan = plan_picture("x", method="fitness", pins=3, size=101, lines=10, picture=picture(bar_picture()))
     assert 1 <= plan.stats["lines"] <= 3 and len(set(map(frozenset, plan.chord_list()))) == plan.stats["lines"]
 
 
 def test_disconnected_plan_is_a_chord_set():
     size = 101
-    plan = plan_picture("x", pins=60, size=size, lines=40, disconnected=True, picture=picture(bar_picture(size)))
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=40, disconnected=True, picture=picture(bar_picture(size)))
     assert not plan.connected and plan.sequence == [] and len(plan.chords) == 40
     assert len(set(plan.chords)) == 40
     assert draw(plan, size=101).min() == 0
@@ -331,7 +331,7 @@ def test_disconnected_plan_is_a_chord_set():
 
 def test_square_frame_plan_never_uses_a_side_chord():
     size = 101
-    plan = plan_picture("x", pins=48, frame="square", size=size, lines=60, picture=picture(bar_picture(size)))
+    plan = plan_picture("x", method="fitness", pins=48, frame="square", size=size, lines=60, picture=picture(bar_picture(size)))
     xy = plan.pin_xy
     for a, b in plan.chord_list():
         assert not any(np.isclose(xy[a, k], e) and np.isclose(xy[b, k], e) for k in (0, 1) for e in (0, 1))
@@ -346,8 +346,8 @@ def test_importance_pulls_chords_to_the_important_half(tmp_path):
     mask = np.zeros((size, size), dtype=np.uint8)
     mask[:, : size // 2] = 255  # left half important
     Image.fromarray(mask).save(tmp_path / "m.png")
-    with_mask = plan_picture("x", pins=60, size=size, lines=80, picture=pic, importance=tmp_path / "m.png")
-    plain = plan_picture("x", pins=60, size=size, lines=80, picture=pic)
+    with_mask = plan_picture("x", method="fitness", pins=60, size=size, lines=80, picture=pic, importance=tmp_path / "m.png")
+    plain = plan_picture("x", method="fitness", pins=60, size=size, lines=80, picture=pic)
     def left_share(plan):
         img = draw(plan, size=101) == 0
         return img[:, :50].sum() / img.sum()
@@ -362,7 +362,7 @@ def test_importance_pulls_chords_to_the_important_half(tmp_path):
     ("method", "magic", "--method"), ("iterations", 0, "--iterations"),
 ])
 def test_bad_knobs_are_named(knob, value, words):
-    kw = dict(pins=60, size=101, lines=10, picture=picture(bar_picture()))
+    kw = dict(pins=60, size=101, lines=10, picture=picture(bar_picture()), method="fitness")
     kw[knob] = value
     with pytest.raises(BadInput) as info:
         plan_picture("x", **kw)
@@ -371,7 +371,7 @@ def test_bad_knobs_are_named(knob, value, words):
 
 def test_render_draws_each_chord_black_on_white():
     size = 101
-    plan = plan_picture("x", pins=60, size=size, lines=30, picture=picture(bar_picture(size)))
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=30, picture=picture(bar_picture(size)))
     img = draw(plan, size=201)
     assert img.dtype == np.uint8 and set(np.unique(img)) <= {0, 255}
     rc = np.rint(plan.pin_xy[plan.sequence][:, ::-1] * 200).astype(int)
@@ -453,8 +453,8 @@ def test_greedy_is_threadtones_loop():
     space = chord_space(P)
     mask = frame_mask(size, "circle")
     seq = greedy_sequence(space, size, g, mask, 400, weight=15.0, reference_radius=None)
-    from stringbot.planner.chords import pin_pixels
-    ref = threadtone_literal(g, pin_pixels(space.pin_xy, size), 400, 15.0, 2.0)
+    pin_rc = np.floor(space.pin_xy[:, ::-1] * (size - 1) + 1e-9).astype(int)  # ThreadTone truncates pins too
+    ref = threadtone_literal(g, pin_rc, 400, 15.0, 2.0)
     assert len(seq) > 30 and len(seq) < 401  # it stopped by ThreadTone's rule: no positive sum left
     assert seq == ref
 

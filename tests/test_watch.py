@@ -58,7 +58,9 @@ def test_the_planner_reports_its_stages_and_sampling_counts(tmp_path, monkeypatc
     Image.fromarray(np.where((x - 40) ** 2 + (y - 40) ** 2 < 400, 20, 230).astype(np.uint8)).save(pic)
     seen = []
     with reporting(lambda stage, done, total: seen.append((stage, done, total))):
-        plan_picture(pic, pins=40, size=64, lines=450)
+        plan_picture(pic, pins=40, size=64, lines=450, method="fitness")
+        plan_picture(pic, pins=40, size=64, lines=450)  # the default method: residual
+    assert ("choosing threads", 399, 450) in seen and ("refining", None, None) in seen
     stages = [s for s, _, _ in seen]
     for want in ("reading the picture", "chords", "solving (detail)", "sampling (detail)", "solving (fill)",
                  "scoring (fill)"):

@@ -67,9 +67,9 @@ def test_a_refused_connection_says_what_to_check_and_offers_no_resume(plan_path,
     s.close()                                          # nothing listens there now
     code, lines, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes", "--port",
                             f"socket://127.0.0.1:{port}"], capsys)
-    assert code == 1 and len(lines) == 1, err
-    assert "refused the connection" in lines[0] and "ser2net" in lines[0]
-    assert "--resume" not in lines[0] and "nothing was wound yet" in lines[0]
+    assert code == 2 and len(lines) == 1, err
+    assert "connection was refused" in lines[0] and "check" in lines[0]
+    assert "--resume" not in lines[0]
 
 
 def test_grbl_left_in_hold_is_named(tmp_path, plan_path, capsys):

@@ -60,6 +60,11 @@ class Emulator:
         """
         return None
 
+    def port_opened(self) -> bool:
+        """A host opened the port.  A board that restarts then (``controller.reset_on_open``)
+        does so and returns True; by default nothing happens."""
+        return False
+
     def idle(self) -> None:
         """The transport is about to wait for the host: if the machine is at rest, the world
         writes its record now if part of it is still unwritten (see ``World.flush``)."""

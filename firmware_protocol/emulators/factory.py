@@ -43,6 +43,8 @@ def build_emulator(machine, *, record=None, faults=None, world=None, settings=()
         from .grbl import GrblEmulator as cls
     elif dialect == "grblhal":
         from .grbl import GrblHalEmulator as cls
+    elif dialect == "fluidnc":
+        from .fluidnc import FluidNcEmulator as cls
     elif dialect == "marlin":
         try:
             from .marlin import MarlinEmulator as cls

@@ -13,8 +13,9 @@ words.
 
 import enum
 import logging
+import math
 
-from ..faults import DISCONNECT_SECONDS, POWER_OFF_SECONDS, FaultPlan
+from ..faults import BOOT_SECONDS, DISCONNECT_SECONDS, POWER_OFF_SECONDS, FaultPlan
 from .base import Emulator
 from .motion import MotionQueue
 
@@ -30,6 +31,7 @@ class Power(enum.Enum):
     ON = "on"
     OFF = "off"              # a power loss: the firmware is not running
     UNPLUGGED = "unplugged"  # the cable is out: the firmware runs, the port is gone
+    BOOTING = "booting"      # the board restarts (reboot, reset on open): deaf and mute a moment
 
 
 def physical_home(machine, ring_now):
@@ -73,6 +75,9 @@ class GcodeFirmware(Emulator):
         self._task = None          # (generator, predicate it waits on, silent) of the running line
         self._timer = None         # virtual time a dwell ends
         self._port_back_at = None
+        self._boot_at = None       # virtual time a rebooting board starts its firmware
+        self._executing_seq = None  # line count of the line being started (for kind@N+F)
+        self._fire_now = []        # faults of that line to fire once it has started
         self.dropped_bytes = 0
 
     # ---- the Emulator interface -------------------------------------------------------------
@@ -87,6 +92,11 @@ class GcodeFirmware(Emulator):
             times.append(max(self._timer - self.now, 0.0))
         if self._port_back_at is not None:
             times.append(max(self._port_back_at - self.now, 0.0))
+        if self._boot_at is not None:
+            times.append(max(self._boot_at - self.now, 0.0))
+        t = self.faults.next_time()
+        if t is not None:
+            times.append(max(t - self.now, 0.0))
         return times
 
     def next_event_in(self):
@@ -117,6 +127,16 @@ class GcodeFirmware(Emulator):
         """A notable event for the world's record (virtual time ``t`` added)."""
         self.world.note(event, t=round(self.now, 6), **detail)
 
+    def port_opened(self):
+        """A host opened the port: a board with ``controller.reset_on_open`` restarts (an Arduino
+        Uno resets on DTR).  Returns True when it did."""
+        if not self.machine["controller.reset_on_open"] or self.power is Power.OFF:
+            return False
+        log.info("port opened: the board restarts (controller.reset_on_open)")
+        self._note("reboot", at="port opened", moving=self.motion.moving)
+        self._reboot()
+        return True
+
     def reconnect(self):
         """Run the clock until the port is back (no-op if it is up)."""
         if self._port_back_at is not None:
@@ -129,6 +149,12 @@ class GcodeFirmware(Emulator):
         self.now += step
         if self.motion.position != before or done:
             self._move_world([b.target for b in done] + [self.motion.position])
+        for fault in self.motion.reached(done) + self.faults.due(self.now):
+            self._fire(fault)
+        if self._boot_at is not None and self.now >= self._boot_at - EPS:
+            self._boot_at = None
+            self.power = Power.ON
+            self._power_on()
         if self._port_back_at is not None and self.now >= self._port_back_at - EPS:
             self._port_back()
         self._after_run()
@@ -148,8 +174,29 @@ class GcodeFirmware(Emulator):
                     self.offset[self.head_i] += self.world.head_mm - head
 
     def _to_physical(self, i, belief):
-        """Where axis ``i`` physically is when the firmware believes ``belief``."""
-        return belief * self.step_scale[i] + self.offset[i]
+        """Where axis ``i`` physically is when the firmware believes ``belief``: its motor stands
+        on a whole step."""
+        return self.whole_step(i, belief) * self.step_scale[i] + self.offset[i]
+
+    #: The firmware counts whole steps (GRBL's ``lround(target * steps_per_mm)``): positions are
+    #: reported and reached in steps.  False: exact positions (for comparisons only).
+    whole_steps = True
+
+    def _steps_per_unit(self, i):
+        """The firmware's steps per unit of axis ``i`` (None: not counted in steps)."""
+        return None
+
+    def whole_step(self, i, value):
+        """``value`` of axis ``i`` rounded to the firmware's nearest whole step (``lround``)."""
+        spu = self._steps_per_unit(i) if self.whole_steps else None
+        if not spu:
+            return value
+        return math.copysign(math.floor(abs(value) * spu + 0.5), value) / spu
+
+    def _on_steps(self):
+        """The firmware's position is its step counters: after a stop mid-block (a reset, a jog
+        cancel) the planner and parser continue from the whole steps it stands on."""
+        self.motion.set_position([self.whole_step(i, v) for i, v in enumerate(self.motion.position)])
 
     def _set_step_scale(self, i, scale, *, keep_steps):
         """A steps-per-unit setting of axis ``i`` changed (the motors have not moved).
@@ -185,7 +232,7 @@ class GcodeFirmware(Emulator):
         position[self.ring_i], position[self.head_i] = self._physical()
         self.offset = [0.0] * len(self.axes)
         for i in (self.ring_i, self.head_i):
-            self.offset[i] = position[i] * (1.0 - self.step_scale[i])
+            self.offset[i] = position[i] - self.whole_step(i, position[i]) * self.step_scale[i]
         self.motion.set_position(position)
         return position
 
@@ -211,18 +258,13 @@ class GcodeFirmware(Emulator):
 
         Returns ``(raw, kinds)``: the line as received (garbled in transit by
         a ``garble`` fault) and the set of fault kinds left for the protocol
-        to apply (``error``, ``drop-ok``); or None when the line is gone.
+        to apply (``error``, ``drop-ok``, ``ignore``); or None when the line is gone.
         """
         kinds = self.faults.next_line()
-        if "power" in kinds:
-            self._port_down(Power.OFF, POWER_OFF_SECONDS)
-            return None
-        if "disconnect" in kinds:
-            self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
-            return None
-        if "reset" in kinds:
-            self._brownout()
-            return None
+        for kind in ("power", "disconnect", "reboot", "reset"):
+            if kind in kinds:
+                self._fire_kind(kind, f"line={self.faults.lines}")
+                return None
         if "garble" in kinds:
             raw = self.garble(raw)
         return raw, kinds
@@ -236,9 +278,31 @@ class GcodeFirmware(Emulator):
         log.info("fault: line garbled to %r", bytes(raw))
         return bytes(raw)
 
+    def _fire(self, fault):
+        """A machine fault at a time or inside a motion (``kind@t=T``, ``kind@N+F``)."""
+        if fault.fraction is not None:
+            self.faults.mark_fired(fault)
+        self._fire_kind(fault.kind, fault.when())
+
+    def _fire_kind(self, kind, at):
+        if self.power in (Power.OFF, Power.BOOTING) or (kind == "disconnect" and not self.port_up):
+            log.info("fault %s@%s: nothing to hit (the firmware is %s)", kind, at, self.power.value)
+            self._note(kind, at=at, skipped=f"the firmware is {self.power.value}")
+            return
+        log.info("fault %s@%s at t=%.4f", kind, at, self.now)
+        self._note({"power": "power off", "disconnect": "port down"}.get(kind, kind), at=at,
+                   moving=self.motion.moving)
+        if kind == "power":
+            self._port_down(Power.OFF, POWER_OFF_SECONDS)
+        elif kind == "disconnect":
+            self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
+        elif kind == "reboot":
+            self._reboot()
+        else:
+            self._fault_reset()
+
     def _port_down(self, power, seconds):
         log.info("fault: port down (%s) for %.2f s", power.value, seconds)
-        self._note("power off" if power is Power.OFF else "port down")
         self.power = power
         self.port_up = False
         self._out.clear()
@@ -246,7 +310,8 @@ class GcodeFirmware(Emulator):
         self._clear_input()
         if power is Power.OFF:
             self.motion.clear()
-            self._task, self._timer = None, None
+            self._task, self._timer, self._boot_at = None, None, None
+            self._stop_resets()
         self._port_back_at = self.now + seconds
 
     def _port_back(self):
@@ -259,16 +324,79 @@ class GcodeFirmware(Emulator):
             self._power_on()
         log.info("port back up")
 
+    def _reboot(self):
+        """The board restarts: everything in progress is lost at once; for BOOT_SECONDS it hears
+        and says nothing; then the firmware starts with its position lost (:meth:`_power_on`)."""
+        self.motion.clear()
+        self._task, self._timer = None, None
+        self._out.clear()
+        self._rx.clear()
+        self._clear_input()
+        self._stop_resets()
+        if self.power is Power.UNPLUGGED:       # nobody listens: it is up again by the time anyone does
+            self._power_on()
+            return
+        self.power = Power.BOOTING
+        self._boot_at = self.now + BOOT_SECONDS
+
+    @property
+    def running(self):
+        """The firmware's main loop runs (with or without the port)."""
+        return self.power in (Power.ON, Power.UNPLUGGED)
+
+    def _stop_resets(self):
+        """Subclass hook: forget a reset in progress (the board lost power or restarted)."""
+
+    def _fault_reset(self):
+        """Subclass hook: a soft reset (``reset`` fault); the firmware's own kind of reset."""
+        self._reboot()
+
     def _clear_input(self):
         """Subclass hook: forget partial lines and queued commands."""
 
     def _power_on(self):
-        """Subclass hook: the firmware starts after a power loss."""
-
-    def _brownout(self):
-        """Subclass hook: the firmware resets by itself."""
+        """Subclass hook: the firmware starts after a power loss or a reboot (position lost)."""
 
     # ---- the running line ---------------------------------------------------------------------------
+    def _start_line(self, result, silent, seq):
+        """Start the task of received line ``seq``; then fire its ``kind@seq+F`` faults that no
+        motion took (a line that moves nothing: as it starts)."""
+        self._executing_seq = seq
+        try:
+            self._start_task(result, silent)
+        finally:
+            self._executing_seq = None
+        now, self._fire_now = self._fire_now + self.faults.fractions(seq), []
+        for fault in now:
+            self._fire(fault)
+
+    def _claim_watches(self, targets):
+        """``{target index: [(distance into that block, fault)]}`` for the ``kind@N+F`` faults of
+        the line being started (``_executing_seq``): F of the line's whole path length."""
+        faults = self.faults.fractions(self._executing_seq) if self._executing_seq else []
+        if not faults:
+            return {}
+        prev = self.motion.blocks[-1].target if self.motion.blocks else tuple(self.motion.position)
+        lengths = []
+        for target in targets:
+            lengths.append(math.dist(prev, target))
+            prev = target
+        total = sum(x for x in lengths if x > 1e-9)
+        watches = {}
+        for fault in faults:
+            if total <= 1e-9:
+                self._fire_now.append(fault)
+                continue
+            d, before = fault.fraction * total, 0.0
+            for i, length in enumerate(lengths):
+                if length > 1e-9 and d <= before + length + 1e-12:
+                    watches.setdefault(i, []).append((d - before, fault))
+                    break
+                before += length if length > 1e-9 else 0.0
+        for w in watches.values():
+            w.sort(key=lambda x: x[0])
+        return watches
+
     def _start_task(self, result, silent):
         """Run a line's result: an immediate response, or a task generator."""
         if hasattr(result, "send"):
@@ -303,12 +431,15 @@ class GcodeFirmware(Emulator):
 
     def _queue_task(self, targets, *, rapid, feed, inverse=False, line_number=0, kind="line"):
         """Queue blocks to ``targets`` as the planner makes room."""
-        for target in targets:
+        watches = self._claim_watches(targets)
+        for i, target in enumerate(targets):
             while self.motion.free <= 0:
                 yield lambda: self.motion.free > 0
             start = self.motion.blocks[-1].target if self.motion.blocks else tuple(self.motion.position)
-            if self.motion.add(start, target, rapid=rapid, feed=feed, inverse_time=inverse,
-                               line_number=line_number, kind=kind) is not None:
+            block = self.motion.add(start, target, rapid=rapid, feed=feed, inverse_time=inverse,
+                                    line_number=line_number, kind=kind)
+            if block is not None:
+                block.watch = watches.get(i)
                 self._motion_queued(kind)
         return 0
 

@@ -12,9 +12,12 @@ blocks and ``ok`` is withheld while it is full.
 The firmware's *belief* (machine position, offsets, modal state, alarm) is
 kept apart from the physical axes in :class:`~firmware_protocol.world.World`:
 ``physical = belief + offset`` for the ring and head axes.  A soft reset
-(0x18) keeps the machine position (GRBL keeps its step counters; ALARM:3 when
-it was moving); a brown-out (``reset`` fault) or a power loss wipes it, so the
-position reads 0 wherever the axes stand.  ``$H`` moves the head to
+(0x18, ``$RST=``, a ``reset`` fault) keeps the machine position (GRBL keeps its
+step counters) and goes as GRBL's ``mc_reset`` and main loop go: motion stops
+dead; if it was moving, ``ALARM:3`` and a 0.5 s pause (``report_alarm_message``)
+in which everything the host sends is lost; then ``ok`` for a line that was
+waiting in the main loop (planner full, a dwell or sync), then the banner.  A
+reboot or a power loss wipes the position, so it reads 0 wherever the axes stand.  ``$H`` moves the head to
 ``head.in_mm`` and then the ring to the nearest whole turn (physical), and
 sets belief = physical.
 """
@@ -32,6 +35,8 @@ __all__ = ["GrblState", "GrblEmulator", "GrblHalEmulator", "physical_home", "Pow
 log = logging.getLogger(__name__)
 
 _EPS = EPS
+#: GRBL's ``delay_ms(500)`` after printing an alarm: the main loop is stopped that long.
+ALARM_PAUSE_SECONDS = 0.5
 
 
 class GrblState(enum.Enum):
@@ -100,13 +105,14 @@ class GrblEmulator(GcodeFirmware):
         self._wco_counter = self._ovr_counter = 0
         self._jog_cancelling = False
         self.after_response = None
+        self._reset_at = None          # (virtual time the alarm pause ends, stray ok owed)
         self._boot(wipe=True, alarm=False)
 
     # ---- the Emulator interface -------------------------------------------------------------
     def receive(self, data):
-        if self.power is not Power.ON or not self.port_up:
-            return
         for c in bytes(data):
+            if self.power is not Power.ON or not self.port_up or self._reset_at is not None:
+                return                  # nobody hears it: off, booting, or pausing after an alarm
             if c in (0x3F, 0x21, 0x7E, 0x18):
                 self._pump()
                 self._realtime(c)
@@ -123,12 +129,21 @@ class GrblEmulator(GcodeFirmware):
                 self.dropped_bytes += 1
         self._pump()
 
+    def _event_times(self):
+        times = super()._event_times()
+        if self._reset_at is not None:
+            times.append(max(self._reset_at[0] - self.now, 0.0))
+        return times
+
     def _after_run(self):
+        if self._reset_at is not None and self.now >= self._reset_at[0] - _EPS:
+            self._finish_reset(self._reset_at[1], alarm=True)
         self._update_state()
 
     def _update_state(self):
         if self.state is GrblState.JOG and self._jog_cancelling and not self.motion.moving:
             self.motion.clear()
+            self._on_steps()
             self.parser.position = list(self.motion.position)
             self._jog_cancelling = False
         if self.state in (GrblState.RUN, GrblState.JOG) and self.motion.empty:
@@ -147,6 +162,7 @@ class GrblEmulator(GcodeFirmware):
         self.motion.clear()
         if wipe:
             self._wipe_belief()
+        self._on_steps()
         self.parser.reset(self.motion.position)
         self._rx.clear()
         self._raw.clear()
@@ -168,18 +184,35 @@ class GrblEmulator(GcodeFirmware):
             self._out += b"\r\n" + self.variant.banner.encode("ascii") + b"\r\n"
 
     def _soft_reset(self):
+        """``mc_reset``: stop dead keeping the position; ALARM:3 (6 when homing) and the pause if
+        moving; a line waiting in the main loop is answered ``ok`` before the banner."""
+        if self._reset_at is not None:
+            return                      # GRBL sets its reset flag once
         moving = self.state in (GrblState.RUN, GrblState.JOG, GrblState.HOME) or (
             self.state is GrblState.HOLD and not self.motion.hold_complete)
-        if moving:
-            self._emit("ALARM:6" if self.state is GrblState.HOME else "ALARM:3")
-        self._boot(wipe=False, alarm=moving)
+        stray = self._task is not None and not self._task[2]
+        self.motion.clear()
+        self._task, self._timer = None, None
+        self._jog_cancelling = False
+        if not moving:
+            self._finish_reset(stray, alarm=False)
+            return
+        log.info("reset while moving: alarm, %.1f s pause", ALARM_PAUSE_SECONDS)
+        self._emit("ALARM:6" if self.state is GrblState.HOME else "ALARM:3")
+        self.state = GrblState.ALARM
+        self._reset_at = (self.now + ALARM_PAUSE_SECONDS, stray)
 
-    def _brownout(self):
-        moving = self.motion.moving or self.state is GrblState.HOME
-        log.info("fault: firmware reset (moving=%s)", moving)
-        if moving:
-            self._emit("ALARM:3")
-        self._boot(wipe=True, alarm=moving)
+    def _finish_reset(self, stray, *, alarm):
+        self._reset_at = None
+        if stray:
+            self._respond(0)
+        self._boot(wipe=False, alarm=alarm)
+
+    def _fault_reset(self):
+        self._soft_reset()
+
+    def _stop_resets(self):
+        self._reset_at = None
 
     def _clear_input(self):
         self._raw.clear()
@@ -191,7 +224,7 @@ class GrblEmulator(GcodeFirmware):
     # ---- the main loop --------------------------------------------------------------------------------
     def _pump(self):
         """Run GRBL's main loop until it blocks or runs out of input."""
-        while self.power is not Power.OFF:
+        while self.running and self._reset_at is None:
             if not self._step_task():
                 return
             if not self._rx:
@@ -214,9 +247,13 @@ class GrblEmulator(GcodeFirmware):
             log.info("fault: line %r rejected", bytes(raw))
             self._respond(20, silent)
             return
+        if "ignore" in kinds:
+            log.info("fault: line %r acknowledged, not executed", bytes(raw))
+            self._respond(0, silent)
+            return
         text, overflow = clean_line(raw, 80)
         result = self._execute(text, overflow)
-        self._start_task(result, silent)
+        self._start_line(result, silent, self.faults.lines)
         if self.after_response is not None:
             then, self.after_response = self.after_response, None
             then()
@@ -241,6 +278,22 @@ class GrblEmulator(GcodeFirmware):
         return self._perform(action)
 
     def _perform(self, action):
+        if action.sync:
+            return self._synced_then(action)
+        return self._perform_now(action)
+
+    def _synced_then(self, action):
+        """GRBL's buffer sync before an EEPROM write or a WCO change; WCO: in the next report."""
+        while not self._synced():
+            yield self._synced
+        if action.wco:
+            self._wco_counter = 0
+        result = self._perform_now(action)
+        if hasattr(result, "send"):
+            result = yield from result
+        return result
+
+    def _perform_now(self, action):
         if action.kind == "move":
             return self._queue_moves([action.target], rapid=action.rapid, feed=action.feed,
                                      inverse=action.inverse_time, line_number=action.line_number)
@@ -281,6 +334,7 @@ class GrblEmulator(GcodeFirmware):
                                          inverse=False, line_number=action.line_number)
         while not self._synced():
             yield self._synced
+        self._wco_counter = 0
         self._emit("[MSG:Pgm End]")
         return 0
 
@@ -349,7 +403,7 @@ class GrblEmulator(GcodeFirmware):
         inches = bool(self.settings[13])
         dec = 4 if inches else 3
         k = 1 / 25.4 if inches else 1.0
-        pos = self.motion.position
+        pos = [self.whole_step(i, v) for i, v in enumerate(self.motion.position)]
         wco = self.parser.wco()
         mask = int(self.settings[10])
         if mask & 1:
@@ -379,6 +433,9 @@ class GrblEmulator(GcodeFirmware):
                 fields.append("A:" + acc)
         return "<" + "|".join([state] + fields) + ">"
 
+    def _steps_per_unit(self, i):
+        return self.settings.get(100 + i)
+
     def _rates(self):
         return [self.settings[110 + i] for i in range(len(self.axes))]
 
@@ -406,6 +463,20 @@ class GrblEmulator(GcodeFirmware):
             from ..grbl import describe_error
             raise ValueError(f"--set {preset.text!r}: the firmware answers error:{code} "
                              f"({describe_error(code)})")
+
+    def restore(self, what):
+        """``$RST=$``: settings back to the build's (the machine file's); ``$RST=#``: G54..G59,
+        G28 and G30 to 0; ``$RST=*``: both, the startup lines and the ``$I`` string too."""
+        if what in "$*":
+            self.settings = default_settings(self.variant, self.axes, self.machine)
+            self.apply_settings()
+        if what in "#*":
+            n = len(self.axes)
+            self.parser.coord_systems = [[0.0] * n for _ in range(6)]
+            self.parser.g28, self.parser.g30 = [0.0] * n, [0.0] * n
+        if what == "*":
+            self.startup_lines = ["", ""]
+            self.user_string = ""
 
     def format_settings(self):
         return format_settings(self.settings)

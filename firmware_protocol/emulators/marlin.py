@@ -52,7 +52,7 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
         super().__init__(machine, world=world, faults=faults, planner_blocks=mc.PLANNER_BLOCKS)
         self._init_settings(presets)        # steps, feeds, accelerations, endstops: marlin_settings
         self.state = MarlinState.READY
-        self.queue = deque()          # (command, silent) checked and waiting to run
+        self.queue = deque()          # (command, silent, line count, ignore) checked, waiting to run
         self._raw = bytearray()
         self._busy_at = None          # next keepalive while a command blocks
         self._boot(wipe=True)
@@ -81,7 +81,7 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
 
     # ---- the main loop ------------------------------------------------------------------------------
     def _pump(self):
-        while self.power is not Power.OFF and self.state is MarlinState.READY:
+        while self.running and self.state is MarlinState.READY:
             while len(self.queue) < mc.BUFSIZE and self._rx:
                 c = self._rx.pop(0)
                 if c in (0x0A, 0x0D):
@@ -98,8 +98,12 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
             self._busy_at = None
             if not self.queue:
                 return
-            command, silent = self.queue.popleft()
-            self._start_task(self._command(command), silent)
+            command, silent, seq, ignore = self.queue.popleft()
+            if ignore:
+                log.info("fault: %r acknowledged, not executed", command)
+                self._respond(0, silent)
+                continue
+            self._start_line(self._command(command), silent, seq)
 
     def _line(self, raw):
         got = self._line_faults(raw)
@@ -133,7 +137,7 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
                 self._line_error(mc.ERR_CHECKSUM_MISMATCH)
                 return
             self.last_n = n
-        self.queue.append((command, "drop-ok" in kinds))
+        self.queue.append((command, "drop-ok" in kinds, self.faults.lines, "ignore" in kinds))
 
     def _line_error(self, message):
         self._emit(f"Error:{message}{self.last_n}")
@@ -317,8 +321,13 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
             yield lambda: self.motion.empty
         return 0
 
+    def _steps_per_unit(self, i):
+        steps = getattr(self, "steps", None)
+        return steps[i] if steps else None
+
     def _M410(self, p):
         self.motion.clear()
+        self._on_steps()
         return 0
 
     # ---- boot, reset, power ---------------------------------------------------------------------------
@@ -347,8 +356,4 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
         self.queue.clear()
 
     def _power_on(self):
-        self._boot(wipe=True)
-
-    def _brownout(self):
-        log.info("fault: firmware reset (moving=%s)", self.motion.moving)
         self._boot(wipe=True)

@@ -28,8 +28,10 @@ class _Lines(click.ParamType):
               help="Plan file to write (JSON).")
 @click.option("--preview", type=click.Path(path_type=str), default=None,
               help="Preview PNG to write [default: the plan's path with .png].")
-@click.option("--method", type=click.Choice(["fitness", "greedy"]), default="fitness", show_default=True,
-              help="fitness: the paper's method; greedy: the ThreadTone baseline.")
+@click.option("--method", type=click.Choice(["residual", "fitness", "greedy"]), default="residual",
+              show_default=True,
+              help="residual: chords chosen by what the picture as woven still lacks, then refined; fitness: the "
+                   "paper's method; greedy: ThreadTone as published.")
 @click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
 @click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
 @click.option("--machine", default=None,
@@ -38,12 +40,16 @@ class _Lines(click.ParamType):
               help="Diameter of the pin circle (side of a square frame) in mm [default: 500, or the machine's].")
 @click.option("--thread-mm", type=float, default=None,
               help="Width of the thread in mm [default: 0.25, or the machine's].")
-@click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
+@click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True,
+              help="Pins on a ring, or along the border of a square (a square is wound by hand: stringbot pins).")
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
-@click.option("--start-pin", type=int, default=0, show_default=True)
+@click.option("--fit", is_flag=True, help="Paint the whole picture, letterboxed on the board, not its centre.")
+@click.option("--start-pin", type=int, default=None,
+              help="First pin (0 is at the top, numbered clockwise) [default: 0; greedy: pins / 4, ThreadTone's].")
 @click.option("--size", type=int, default=None, help="Working size in pixels [default: 401; greedy: 1001, ThreadTone's].")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
-              help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
+              help="Chords to draw; auto: residual stops when another thread would not improve the picture as "
+                   "woven; fitness and greedy: 500 + 10 (255 - mean gray).")
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
 @click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
@@ -59,11 +65,14 @@ class _Lines(click.ParamType):
               help="T of tanh(f / T): larger spreads chords out [detail: 30].")
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
+@click.option("--refine", type=int, default=300, show_default=True,
+              help="Residual: pins the refinement revisits (0: no refinement).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
-def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, start_pin,
-             size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache, force):
+def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
+             start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
+             no_cache, force):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
@@ -116,7 +125,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                              lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
                              importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
                              T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
-                             diameter_mm=diameter_mm, thread_mm=thread_mm)
+                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine)
     finally:
         shown.close()
     if machine is not None:
@@ -126,9 +135,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
-    thread = f"{s['thread_diameters']:.1f} diameters"
-    if mach is not None:      # the frame's size is known: metres (chords only; the estimate adds the wraps)
-        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    # the frame's size is known (--diameter-mm, the machine's, or the default): metres, chords only
+    thread = f"{s['thread_diameters'] * p.diameter_mm / 1000.0:.1f} m"
     click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
                f"{s['seconds']:.2f} s -> {output} (preview {preview})")
     if mach is not None:
@@ -177,7 +185,8 @@ def render_cmd(plan, output, size, binary):
     check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
     write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
-    how = "as 1-pixel lines" if binary else f"as woven ({p.thread_mm:g} mm thread on {p.diameter_mm:g} mm)"
+    m = p.thread_model()
+    how = "as 1-pixel lines" if binary else f"as woven ({m.thread_mm:g} mm thread on {m.diameter_mm:g} mm)"
     click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
 
 
@@ -232,4 +241,7 @@ def score_cmd(plan, image, as_json):
                    f"{'SSIM':<10} {r['ssim']:.4f}   (Gaussian 11x11 window; scikit-image default 7x7: "
                    f"{r['ssim_uniform']:.4f})\n"
                    f"{'blurred':<10} {r['ssim_blurred']:.4f}   (7x7: {r['ssim_uniform_blurred']:.4f})\n"
-                   f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)")
+                   f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)\n"
+                   "SSIM compares the drawing with the picture, both 201 px (the paper's section 4.1): 1 is "
+                   "the picture itself, 0 nothing in common; higher is better. 'blurred' compares them after "
+                   "a blur (sigma 2 px), as the eye sees the painting from afar.")

@@ -168,8 +168,10 @@ def _summary(result, machine):
 @click.option("--record", default=None, type=click.Path(dir_okay=False),
               help="Write the world's record (wraps, collisions) to this JSON file.")
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
-@click.option("--faults", default=None, help="Faults to inject: kind@N,... (disconnect, reset, power, "
-                                             "garble, drop-ok, error; N counts received lines).")
+@click.option("--faults", default=None, help="Faults to inject, a comma list: kind@N (as line N arrives), "
+                                             "kind@N+F (F of line N's move done), kind@t=SECONDS, kind@N..M; "
+                                             "kinds reset, reboot, power, disconnect, garble, drop-ok, error, "
+                                             "ignore (docs/simulator.md).")
 @click.option("--set", "settings", multiple=True, metavar="SETTING",
               help="Start the firmware with this setting instead of the machine file's (repeatable): "
                    "'$100=40' (GRBL, grblHAL), 'M92 A40' (Marlin), 'ring:Drive Mode=1' (Dynamixel ID:ITEM=VALUE).")

@@ -362,7 +362,7 @@ def _axis_order(machine):
     dialect = machine["controller.dialect"]
     if dialect == "grbl":
         return "XYZ"
-    if dialect == "grblhal":
+    if dialect in ("grblhal", "fluidnc"):
         return "XYZA" if "A" in (machine["controller.ring_axis"], machine["controller.head_axis"]) \
             else "XYZ"
     return "XYZA"
@@ -373,7 +373,7 @@ def gcode_machine_link(port, machine, **options):
     sync = options.pop("sync", "move")
     verify = options.pop("verify", True)
     dialect = machine["controller.dialect"]
-    if dialect in ("grbl", "grblhal"):
+    if dialect in ("grbl", "grblhal", "fluidnc"):
         proto = GrblLink(port, dialect, **options)
     else:
         proto = MarlinLink(port, **options)

@@ -145,6 +145,12 @@ class GrblHalDialect(GcodeDialect):
     name = "grblhal"
 
 
+class FluidNcDialect(GcodeDialect):
+    """FluidNC (GRBL's protocol on an ESP32, often over telnet): like grblHAL, rotary A, B, C axes."""
+
+    name = "fluidnc"
+
+
 class MarlinDialect(GcodeDialect):
     """Marlin 2.1 with a rotary ``A`` axis: ``G28``/``G92``, ``M400`` sync, dwell in ms, no ``M2``."""
 
@@ -169,7 +175,7 @@ class MarlinDialect(GcodeDialect):
         return [self.sync(), "M117 stringbot: done"]
 
 
-_DIALECTS = {"grbl": GrblDialect, "grblhal": GrblHalDialect, "marlin": MarlinDialect}
+_DIALECTS = {"grbl": GrblDialect, "grblhal": GrblHalDialect, "fluidnc": FluidNcDialect, "marlin": MarlinDialect}
 
 
 def dialect_for(machine):

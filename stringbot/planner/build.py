@@ -39,14 +39,14 @@ __all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "thr
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").  beta, gamma and T are
 #: those of the ``detail`` style; ``fill`` uses :data:`FILL`.
 DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
-            "iterations": 25, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
+            "iterations": 25, "refine": 300, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
 #: ThreadTone's working size: a picture of radius 500 px.
 GREEDY_SIZE = 1001
 MIN_SIZE, MAX_SIZE = 32, 2001
 MAX_LINES = 100_000
-METHODS = ("fitness", "greedy")
+METHODS = ("residual", "fitness", "greedy")
 STYLES = ("auto", "detail", "fill")
 #: The ``fill`` style: the paper's regularisation weights times 30 and a sharp tanh.
 FILL = {"beta": 150.0, "gamma": 300.0, "T": 1.0}
@@ -141,12 +141,12 @@ def thread_length(pin_xy, chords):
     return float(np.linalg.norm(pin_xy[c[:, 0]] - pin_xy[c[:, 1]], axis=1).sum())
 
 
-def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines="auto", start_pin=0,
-                 method="fitness", disconnected=False, importance=None, gray=None, style=None,
+def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines="auto", start_pin=None,
+                 method="residual", disconnected=False, importance=None, gray=None, style=None,
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
                  picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
-                 diameter_mm=None, thread_mm=None):
+                 diameter_mm=None, thread_mm=None, fit=False, refine=DEFAULTS["refine"]):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -157,7 +157,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     alpha, epsilon, iterations
         The knobs (see ``stringbot plan --help`` and docs/planner.md).  ``size``
         None: 1001 for greedy (ThreadTone's own), else 401; ``gray`` None:
-        luminance for greedy (ThreadTone's), else decolor.
+        luminance for greedy (ThreadTone's), else decolor.  ``start_pin`` None:
+        ``pins // 4`` for greedy (ThreadTone's pin 0 faces right), else 0;
+        greedy's default crop is ThreadTone's square (whole-pixel offsets).
     style : {"auto", "detail", "fill"} or None
         Fitness only: which setting of beta, gamma and T (see the module
         notes); None is ``auto``.
@@ -179,6 +181,11 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     diameter_mm, thread_mm : float or None
         The frame's diameter and the thread's width (None: 500 mm and
         0.25 mm), recorded in the plan; the default method plans with them.
+    fit : bool
+        Crop the whole picture, letterboxed (white around it), instead of the
+        largest centred circle; conflicts with ``crop``.
+    refine : int
+        Residual only: pins the refinement revisits (0: none).
 
     Returns
     -------
@@ -191,15 +198,31 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         size = GREEDY_SIZE if method == "greedy" else DEFAULTS["size"]
     if gray is None:  # ThreadTone grays by luminance (cv2.COLOR_BGR2GRAY), the paper by decolorization
         gray = "luminance" if method == "greedy" else "decolor"
+    if start_pin is None:  # ThreadTone starts at its pin 0, which faces right: our pin pins / 4
+        start_pin = pins // 4 if method == "greedy" else 0
+    if method == "greedy" and crop is None and not fit and picture is None:
+        from .image import threadtone_crop
+
+        crop = threadtone_crop(path)
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin, method=method,
                 alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations, style=style)
     model = thread_model(diameter_mm, thread_mm)
     if disconnected and method != "fitness":
         raise BadInput("--disconnected works with --method fitness only")
-    if method == "greedy" and (style is not None or any(x is not None for x in (beta, gamma, T))):
-        raise BadInput("--style, --beta, --gamma and -T are knobs of --method fitness; greedy has none of them")
+    if method != "fitness" and (style is not None or any(x is not None for x in (beta, gamma, T))):
+        raise BadInput(f"--style, --beta, --gamma and -T are knobs of --method fitness; {method} has none of them")
+    if fit and crop is not None:
+        raise BadInput("--fit and --crop both choose the part of the picture to paint; give one of them")
+    if not (isinstance(refine, int) and 0 <= refine <= 1_000_000):
+        raise BadInput(f"--refine {refine}; expected 0..1000000 pins")
+    if fit and picture is None:
+        from .image import fit_crop
+
+        crop = fit_crop(path, frame)
     report("reading the picture")
-    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
+    # greedy reads the picture as ThreadTone does: cv2.resize, bilinear
+    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng,
+                                  resample="bilinear" if method == "greedy" else "lanczos")
     weights = None
     if importance is not None:
         weights = read_mask(importance, size=size, crop=pic.crop,
@@ -207,7 +230,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     from .fitness import frame_mask
 
     mask = frame_mask(size, frame)
-    k = auto_lines(pic.gray, mask) if lines == "auto" else int(lines)
+    k = (auto_lines(pic.gray, mask) if method != "residual" else None) if lines == "auto" else int(lines)
     space = chord_space(pins, frame)
     report("chords")
     stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m)}
@@ -220,7 +243,12 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
               "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
               "importance": str(importance) if importance is not None else None}
     chords = None
-    if method == "greedy":
+    if method == "residual":
+        seq, extra = _residual_run(space, pic, mask, weights, lines if lines == "auto" else k, model,
+                                   start_pin=start_pin, refine=refine)
+        params.update(refine=refine, thread_px=round(model.width_px(size), 4))
+        stats.update(extra)
+    elif method == "greedy":
         from .greedy import greedy_sequence
 
         gk = {"weight": DEFAULTS["greedy_weight"], "width": DEFAULTS["greedy_width"],
@@ -257,12 +285,40 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                        "expected a picture with some dark parts")
     stats.update(lines=len(chord_list), thread_diameters=round(thread_length(space.pin_xy, chord_list), 3),
                  setup_seconds=round(t_chords - t0, 3), seconds=round(time.perf_counter() - t0, 3))
-    if len(chord_list) < k:
+    if k is not None and len(chord_list) < k:
         log.warning("%s stopped after %d of %d lines", method, len(chord_list), k)
     return Plan(diameter_mm=model.diameter_mm, thread_mm=model.thread_mm,
                 pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
                 connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])])
+
+
+def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine):
+    """The default method: residual choice under the thread model, then refinement."""
+    from .greedy import _PinLines
+    from .refine import refine_sequence
+    from .residual import Canvas, residual_sequence
+
+    size = pic.gray.shape[0]
+    target = np.where(mask, 1.0 - pic.gray / 255.0, 0.0)
+    if float(target.max(initial=0.0)) < 1.0 / 255:
+        raise BadInput("residual found nothing to draw: the picture is blank inside the frame; "
+                       "expected a picture with some dark parts")
+    w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
+    canvas = Canvas(target, w, space.pin_xy, model.width_px(size))
+    # points about every 1/400 of the frame along each chord: at 801 px every other pixel (the mean
+    # residual along a chord needs no more, and this halves the work of large sizes)
+    pin_lines = _PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / 400.0))
+    t = time.perf_counter()
+    seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines)
+    t_choose = time.perf_counter() - t
+    err = canvas.error()
+    report("refining")
+    seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
+    area = float(w.sum())
+    return seq, {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
+                 "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
+                 "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
 
 
 def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alpha, epsilon, iterations, start_pin,

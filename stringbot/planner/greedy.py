@@ -40,7 +40,7 @@ log = logging.getLogger(__name__)
 __all__ = ["greedy_sequence", "line_samples", "band_pixels", "cv_half_width"]
 
 
-def line_samples(r0, c0, r1, c1, size, *, nearest=False):
+def line_samples(r0, c0, r1, c1, size, *, nearest=False, spacing=1.0):
     """ThreadTone's line points: ``int(hypot)`` points from pin to pin, each on its nearest pixel.
 
     Parameters
@@ -52,6 +52,8 @@ def line_samples(r0, c0, r1, c1, size, *, nearest=False):
     size : int
     nearest : bool
         Each point on its nearest pixel; False: truncated, as ThreadTone does.
+    spacing : float
+        ``int(hypot / spacing)`` points (1: ThreadTone's).
 
     Returns
     -------
@@ -62,17 +64,22 @@ def line_samples(r0, c0, r1, c1, size, *, nearest=False):
     """
     r1, c1 = np.asarray(r1, dtype=np.float64), np.asarray(c1, dtype=np.float64)
     dr, dc = r1 - r0, c1 - c0
-    n = np.maximum(np.hypot(dr, dc).astype(np.int64), 1)
+    n = np.maximum((np.hypot(dr, dc) / spacing).astype(np.int64), 1)
     starts = np.concatenate([[0], np.cumsum(n)[:-1]])
-    seg = np.repeat(np.arange(len(n)), n)
-    t = np.arange(int(n.sum()), dtype=np.float64) - np.repeat(starts, n)
-    frac = t / np.maximum(n - 1, 1)[seg]  # linspace: both pins included
+    seg = np.repeat(np.arange(len(n), dtype=np.int32), n)
+    t = np.arange(int(n.sum()), dtype=np.float32)
+    t -= np.repeat(starts.astype(np.float32), n)
+    inv = (1.0 / np.maximum(n - 1, 1)).astype(np.float32)  # linspace: both pins included
+    t *= inv[seg]
     rnd = np.rint if nearest else np.floor
-    rr = rnd(r0 + frac * dr[seg]).astype(np.int64)
-    cc = rnd(c0 + frac * dc[seg]).astype(np.int64)
+    # float32 is exact enough here: coordinates < 4096, steps of at least 1/4096
+    rr = rnd(np.float32(r0) + t * dr.astype(np.float32)[seg])
+    cc = rnd(np.float32(c0) + t * dc.astype(np.float32)[seg])
     np.clip(rr, 0, size - 1, out=rr)
     np.clip(cc, 0, size - 1, out=cc)
-    return starts, (rr * size + cc).astype(np.int32)
+    rr *= size
+    rr += cc
+    return starts, rr.astype(np.int32)
 
 
 def cv_half_width(thickness):
@@ -127,12 +134,17 @@ def band_pixels(r0, c0, r1, c1, size, half):
 class _PinLines:
     """Per pin, the line points of every chord from it, built the first time the pin is visited.
 
-    ``nearest``: points on their nearest pixel (else truncated, as ThreadTone does).
+    ``nearest``: points on their nearest pixel (else truncated, as ThreadTone does); ``spacing``:
+    pixels between points (1: ThreadTone's).
     """
 
-    def __init__(self, space, size, *, nearest=False):
-        self.space, self.size, self.nearest = space, size, nearest
-        self.rc = pin_pixels(space.pin_xy, size)
+    def __init__(self, space, size, *, nearest=False, spacing=1.0):
+        self.space, self.size, self.nearest, self.spacing = space, size, nearest, spacing
+        if nearest:
+            self.rc = pin_pixels(space.pin_xy, size)
+        else:  # ThreadTone truncates its pin coordinates: int(r + 1 + r cos a), sampled one pixel lower
+            self.rc = np.clip(np.floor(np.asarray(space.pin_xy)[:, ::-1] * (size - 1) + 1e-9), 0,
+                              size - 1).astype(np.int64)
         self.cache = {}
 
     def get_with_counts(self, p):
@@ -141,7 +153,7 @@ class _PinLines:
             others = np.flatnonzero(self.space.index[p] >= 0)
             r0, c0 = self.rc[p]
             starts, flat = line_samples(r0, c0, self.rc[others, 0], self.rc[others, 1], self.size,
-                                        nearest=self.nearest)
+                                        nearest=self.nearest, spacing=self.spacing)
             counts = np.diff(np.append(starts, len(flat))).astype(np.float32)
             self.cache[p] = (others, flat, starts, counts)
         return self.cache[p]

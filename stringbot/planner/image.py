@@ -29,7 +29,7 @@ from ..errors import BadInput
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "parse_crop", "MAX_PIXELS"]
+__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "fit_crop", "parse_crop", "MAX_PIXELS"]
 
 MAX_PIXELS = 1_000_000_000      # refuse larger pictures outright
 MAX_DECODED_BYTES = 1_200_000_000  # PIL's decoded image must fit in this
@@ -74,6 +74,33 @@ def sha256_file(path):
 def default_crop(width, height):
     """The largest centred circle (or square): ``{"cx", "cy", "r"}`` in source pixels."""
     return {"cx": width / 2.0, "cy": height / 2.0, "r": min(width, height) / 2.0}
+
+
+def fit_crop(path, frame="circle"):
+    """The crop that holds the whole picture, letterboxed: centred, radius half the diagonal (circle) or half
+    the longer side (square); what lies outside the picture is white."""
+    im = _open(path, "picture")
+    w, h = im.size
+    try:
+        if int(im.getexif().get(0x0112, 1)) in (5, 6, 7, 8):
+            w, h = h, w
+    except Exception:  # noqa: BLE001 -- a damaged EXIF block: as stored
+        pass
+    r = float(np.hypot(w, h)) / 2.0 if frame == "circle" else max(w, h) / 2.0
+    return {"cx": w / 2.0, "cy": h / 2.0, "r": r}
+
+
+def threadtone_crop(path):
+    """ThreadTone's crop: the largest centred square, its corner on whole pixels (``int((w - side) / 2)``)."""
+    im = _open(path, "picture")
+    w, h = im.size
+    try:
+        if int(im.getexif().get(0x0112, 1)) in (5, 6, 7, 8):
+            w, h = h, w
+    except Exception:  # noqa: BLE001 -- a damaged EXIF block: as stored
+        pass
+    side = min(w, h)
+    return {"cx": int((w - side) / 2) + side / 2.0, "cy": int((h - side) / 2) + side / 2.0, "r": side / 2.0}
 
 
 def parse_crop(text):
@@ -150,7 +177,7 @@ def _to_8bit(im):
     return im
 
 
-def _cut(im, box, size):
+def _cut(im, box, size, resample="lanczos"):
     """Cut ``box`` (may reach outside: white) from ``im`` and resample to ``size x size``.
 
     Works in strips reduced by an integer factor, so the full-resolution copy
@@ -181,7 +208,8 @@ def _cut(im, box, size):
             strip = strip.reduce(factor)
         canvas.paste(strip, (0, (sy - iy0) // factor))
     fb = ((x0 - ix0) / factor, (y0 - iy0) / factor, (x1 - ix0) / factor, (y1 - iy0) / factor)
-    return canvas.resize((size, size), Image.Resampling.LANCZOS, box=fb)
+    how = Image.Resampling.BILINEAR if resample == "bilinear" else Image.Resampling.LANCZOS
+    return canvas.resize((size, size), how, box=fb)
 
 
 def _whiten_outside(strip, origin, full):
@@ -199,7 +227,8 @@ def _whiten_outside(strip, origin, full):
     strip.paste(white, (0, 0))
 
 
-def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", rng=None, weights=None):
+def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", rng=None, weights=None,
+                 resample="lanczos"):
     """Read, crop and gray a picture.
 
     Parameters
@@ -219,6 +248,8 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
     weights : tuple of float, optional
         ``(w_r, w_g, w_b)`` to use instead of choosing them (e.g. a plan's
         recorded decolorization, to score against the very same gray).
+    resample : {"lanczos", "bilinear"}
+        The final resampling to ``size`` (bilinear: as ``cv2.resize`` does by default).
 
     Returns
     -------
@@ -257,7 +288,7 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
         if im.size[0] != w:  # decoded at a reduced scale
             k = w / im.size[0]
             box = tuple(v / k for v in box)
-        small = _cut(im, box, size)
+        small = _cut(im, box, size, resample)
     except BadInput:
         raise
     except (OSError, SyntaxError, ValueError, EOFError) as exc:
