@@ -163,7 +163,8 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
             require_agreement(link, job.machine)
         winder = Winder(link, job.steps, job.machine, journal=journal, progress=progress,
                         confirm=confirm)
-        winder.start(home=job.machine["controller.homing"])
+        winder.start(home=job.machine["controller.homing"]
+                     or bool(job.machine.values.get("controller.head_homing")))
         first = job.steps[0]
         winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
                    "then go on?")
