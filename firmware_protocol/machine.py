@@ -111,6 +111,9 @@ SCHEMA = {
                               doc="ring axis value declared at the home switch after homing"),
         "home_head_mm": _Key(float, None, lo=-1000.0, hi=1000.0,
                              doc="head axis value declared at the home switch; default head.in_mm"),
+        "head_homing": _Key(bool, False, doc="a home switch on the head axis only (no ring switch): the "
+                                             "head homes alone ($HY / G28 Y), which makes a resume after a "
+                                             "lost position find the head by itself"),
         "reset_on_open": _Key(bool, False, doc="the board restarts whenever its port is opened (an "
                                                "Arduino Uno's auto-reset on DTR): position lost"),
         # kind = "dynamixel" (Protocol 2.0, X series); ignored for G-code machines
@@ -149,7 +152,8 @@ DYNAMIXEL_MAX_TURNS = 256
 DYNAMIXEL_ONLY = frozenset(f"controller.{k}" for k in (
     "protocol", "ring_id", "head_id", "model_number", "ticks_per_turn", "gear_ratio",
     "profile_velocity", "profile_acceleration", "head_in_ticks", "head_out_ticks"))
-GCODE_ONLY = frozenset(f"controller.{k}" for k in ("dialect", "ring_axis", "head_axis", "reset_on_open"))
+GCODE_ONLY = frozenset(f"controller.{k}" for k in ("dialect", "ring_axis", "head_axis", "reset_on_open",
+                                                   "head_homing"))
 
 
 @dataclass(frozen=True)

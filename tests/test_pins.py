@@ -16,7 +16,9 @@ from test_gcode_replay import make_plan, random_sequence
 @pytest.fixture
 def plan_file(tmp_path):
     path = tmp_path / "p.json"
-    write_plan(make_plan(random_sequence(250, seed=4)), path)
+    plan = make_plan(random_sequence(250, seed=4))
+    plan.diameter_mm, plan.thread_mm = 500.0, 0.25      # as `plan` records them (a hand-made plan may not)
+    write_plan(plan, path)
     return path
 
 

@@ -18,6 +18,7 @@ from stringbot.planner import write_plan
 from stringbot.winding import Job, read_journal, wind_plan
 from stringbot.winding.resume import resume_plan, status_lines
 
+from scripted_operator import ScriptedOperator, world_looker
 from test_wind_sim import small_plan
 
 
@@ -32,15 +33,46 @@ def make_job(tmp_path, name, faults, n=12, seed=3):
 
 
 def head_side_from_world(url):
-    """What an operator sees: the simulated machine's head (the record file is saved per wrap only)."""
+    """What an operator sees: the simulated machine's head."""
     from firmware_protocol.urlhandler import protocol_sim
     return "out" if protocol_sim.session(url).world.head_out else "in"
 
 
-def wind_to_the_end(job, record, first=None, max_runs=10):
+def operator_for(job):
+    from firmware_protocol.urlhandler import protocol_sim
+    return ScriptedOperator(job.machine, world_looker(lambda: protocol_sim.session(job.url).world))
+
+
+def resume_as_an_operator(job, fast, tried):
+    """As a person would: ``--resume --yes``; if that asks for ``--head-side``, look and give it;
+    if it asks for a terminal, answer its questions and follow its guide (from the machine).
+    ``tried`` collects the ways used."""
+    try:
+        tried.append("yes")
+        return resume_plan(job, confirm=None, link_options=fast)
+    except BadInput as exc:
+        if "--head-side" not in str(exc) and "terminal" not in str(exc):
+            raise
+        if "--head-side" in str(exc) and "guided" not in str(exc).split("--head-side")[0]:
+            tried.append("head-side")
+            try:
+                return resume_plan(job, confirm=None, head_side=head_side_from_world(job.url), link_options=fast)
+            except BadInput as again:
+                if "terminal" not in str(again):
+                    raise
+    except MachineFailure as exc:
+        if "terminal" not in str(exc):
+            raise
+    tried.append("terminal")
+    op = operator_for(job)
+    return resume_plan(job, confirm=op.confirm, choose=op.choose, jog=op.jog, say=op.say, link_options=fast)
+
+
+def wind_to_the_end(job, record, first=None, max_runs=10, tried=None):
     """Wind, then resume after every stop; returns the number of interruptions."""
     stops = 0
     fast = {"response_timeout": 1.0}
+    tried = [] if tried is None else tried
     run = first or (lambda: wind_plan(job, confirm=None, link_options=fast))
     for _ in range(max_runs):
         try:
@@ -48,8 +80,7 @@ def wind_to_the_end(job, record, first=None, max_runs=10):
             return stops
         except (MachineFailure, Interrupted):
             stops += 1
-        run = lambda: resume_plan(job, confirm=None, head_side=head_side_from_world(job.url),
-                                  link_options=fast)
+        run = lambda: resume_as_an_operator(job, fast, tried)
     raise AssertionError("still not finished after %d runs" % max_runs)
 
 

@@ -144,7 +144,7 @@ class FakeDevice:
 
 
 @pytest.mark.parametrize("reply, words", [
-    (b"\x00\xff\xfe#$%\r\n", "garbage"),
+    (b"\x00\xff\xfe#$%\r\n", "unreadable bytes"),
     (None, "no answer"),
     (b"FIRMWARE_NAME:Marlin 2.1.2\r\nok\r\n", "runs Marlin"),
 ])

@@ -131,7 +131,7 @@ def test_host_killed_with_sigkill_then_resume(tmp_path, sim_factory):
             finished = True
             break
         assert proc.returncode == -signal.SIGKILL, err
-        resume = ["--resume"]
+        resume = ["--resume"] if journal.exists() else []   # killed before it began: start again
     if not finished:   # the last kill may have come after the journal's final record
         status = subprocess.run(STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring",
                                              "--status", "--journal", str(journal)],

@@ -185,7 +185,8 @@ def render_cmd(plan, output, size, binary):
     check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
     write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
-    how = "as 1-pixel lines" if binary else f"as woven ({p.thread_mm:g} mm thread on {p.diameter_mm:g} mm)"
+    m = p.thread_model()
+    how = "as 1-pixel lines" if binary else f"as woven ({m.thread_mm:g} mm thread on {m.diameter_mm:g} mm)"
     click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
 
 

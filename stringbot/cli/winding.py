@@ -62,23 +62,28 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
         for line in resuming.status_lines(job):
             click.echo(line)
         return
+    if head_side is not None and not resume:
+        raise BadInput("--head-side says where the thread head is when a resume cannot know; it goes "
+                       "with --resume (leave it out otherwise)")
+    if resume and from_step is not None:
+        raise BadInput("--resume continues where the winding stopped, --from-step N restarts at step N; "
+                       "give one of them, not both")
     again = _resume_command(plan, machine_name, port, journal)
-
-    def confirm(question):
-        return click.confirm(question, default=True, err=True)
+    ask = _Asking()
 
     from .progress import WindProgress
 
     progress = WindProgress(every=progress_every).start()
     try:
         if resume or from_step is not None:
-            def choose(question, choices):
-                return click.prompt(question, type=click.Choice(choices), err=True)
             result = resuming.resume_plan(job, from_step=from_step, head_side=head_side,
-                                          confirm=None if yes else confirm,
-                                          choose=None if yes else choose, progress=progress)
+                                          confirm=None if yes else ask.confirm,
+                                          choose=None if yes else ask.choose,
+                                          jog=None if yes else ask.jog,
+                                          say=None if yes else ask.say, progress=progress)
         else:
-            result = wind_plan(job, confirm=None if yes else confirm, progress=progress, check=not no_check)
+            result = wind_plan(job, confirm=None if yes else ask.confirm, progress=progress,
+                               check=not no_check)
     except SettingsDisagree as exc:     # nothing moved: no resume to offer
         from .checking import refusal_lines
         for line in refusal_lines(exc, machine_name, port):
@@ -87,6 +92,9 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     except (Interrupted, MachineFailure) as exc:
         if port is None:
             raise  # a dry run cannot be resumed (its simulated machine ends with the command)
+        if not _anything_wound(job):
+            raise type(exc)(f"{exc}; nothing was wound yet: once that is fixed, run the same command "
+                            "again") from None
         raise type(exc)(f"{exc}; resume with: {again}") from None
     finally:
         progress.close()
@@ -94,6 +102,49 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     if problem:
         raise MachineFailure(problem)
     click.echo(_summary(result, job.machine))
+
+
+class _Asking:
+    """The operator at the terminal; a question that meets the end of standard input (no
+    terminal, nothing piped) is one line saying so, not a bare exit 130."""
+
+    def _prompt(self, call):
+        try:
+            return call()
+        except click.Abort as exc:
+            if isinstance(exc.__context__, EOFError):
+                click.echo("", err=True)          # end the question's line
+                raise BadInput("a question needs an answer but standard input ended (not a terminal): "
+                               "run in a terminal, or answer with --yes (and, on --resume, --head-side "
+                               "in|out after looking at the machine)") from None
+            raise
+
+    def confirm(self, question):
+        return self._prompt(lambda: click.confirm(question, default=True, err=True))
+
+    def choose(self, question, choices):
+        return self._prompt(lambda: click.prompt(question, type=click.Choice(choices), err=True))
+
+    def jog(self, prompt):
+        return self._prompt(lambda: click.prompt(prompt.rstrip("> "), default="", show_default=False,
+                                                 prompt_suffix="> ", err=True))
+
+    def say(self, text):
+        click.echo(text, err=True)
+
+
+def _anything_wound(job):
+    """The journal shows a step or a move executed (a resume then has something to continue)."""
+    from ..winding import read_journal
+    try:
+        state = read_journal(job.journal_path)
+    except BadInput:
+        return False
+    if state.done or state.resumes or state.next_move:
+        return True
+    # the first step's head move and approach hook nothing: a fresh start redoes them safely
+    return any((rec.get("at") or {}).get("step_index", 0) > 0 or (rec.get("at") or {}).get("move", 0) >= 2
+               for rec in state.stops)
 
 
 def _summary(result, machine):

@@ -120,6 +120,11 @@ class LineLink:
         """The machine said something unreadable: stop it if it was moving; the error to raise."""
         if self.state is LinkState.STREAMING:
             self.stop_quietly()
+        if self.state is LinkState.OPEN:            # nothing understood yet: most likely the speed
+            baud = getattr(self.port, "baudrate", None)
+            return self.fail(f"the device on the port answers unreadable bytes ({raw[:24]!r}): check the "
+                             f"baud rate (the machine file's controller.baud{f' = {baud}' if baud else ''} "
+                             "must be the firmware's) and that this is the machine's port")
         return self.fail(f"the machine answered garbage: {raw[:60]!r}")
 
     def stop_quietly(self, hold=True):

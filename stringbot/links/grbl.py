@@ -125,6 +125,9 @@ class GrblLink(LineLink):
             raise self.fail(f"the machine runs Marlin, but machine file says {self.dialect!r}; "
                             "use a machine file for Marlin or check the port")
         if not name and not any(_VER.match(x) for x in lines):
+            busy = self._busy_state(lines)
+            if busy:
+                raise self.fail(busy)
             if lines:
                 raise self.fail(f"the device on the port is not GRBL or grblHAL; it answered {lines[0][:60]!r}")
             raise self.fail("no answer from the machine (expected GRBL's banner or $I); "
@@ -146,6 +149,33 @@ class GrblLink(LineLink):
         self.state = LinkState.IDENTIFIED
         log.info("firmware: %s %s, receive buffer %d bytes", self.info.name, version, self.rx_size)
         return self.info
+
+    def _busy_state(self, lines):
+        """A GRBL that refuses ``$I`` (``error:8``, not idle) because it holds or runs: say so."""
+        if not any(x.startswith("error") for x in lines):
+            return None
+        try:
+            self.write(b"?")
+            for _ in range(5):
+                line = self.readline(self.response_timeout)
+                if line is None:
+                    return None
+                if line.startswith("<"):
+                    st = parse_status(line)
+                    break
+            else:
+                return None
+        except Exception:
+            return None
+        if st.state == "Hold":
+            return ("the machine is GRBL in Hold (a feed hold is waiting, so it answers nothing else): "
+                    "send ~ to let it go on, or reset it (Ctrl-X), then run again")
+        if st.state in ("Run", "Jog", "Home"):
+            return (f"the machine is GRBL, busy ({st.state}): another program may be running a job on it; "
+                    "wait for it or stop it, then run again")
+        if st.state == "Door":
+            return "the machine is GRBL with its safety door open: close it, then run again"
+        return None
 
     def _ask(self, text, seen):
         """Send a query in send-response fashion.
@@ -441,7 +471,8 @@ class GrblLink(LineLink):
             where = self._inflight[0][1] if self._inflight else self.where
             if self._inflight:
                 self._answered(ok=False)      # a refused sync proves nothing was executed
-            self.stop_quietly()
+            if self.state is LinkState.STREAMING:
+                self.stop_quietly()           # a refused command between jobs moves nothing to stop
             raise self.fail(f"the machine refused a line: {_error_words(code) if code is not None else line}",
                             where)
         elif line.startswith("ALARM"):

@@ -155,9 +155,8 @@ class GcodeRecovery:
                                   ("head", head, m["head.feed_mm_per_min"])):
             if delta:
                 self.rest = self.here = None
-                for line in self.dialect.jog_lines(axis, delta, feed):
-                    self.proto.command(line, timeout=getattr(self.proto, "motion_timeout", 600.0))
-                self.proto.run_lines([], self.proto.where)     # the sync: the jog has finished
+                # relative, then absolute again, then the sync: sent together and waited for
+                self.proto.run_lines(self.dialect.jog_lines(axis, delta, feed), self.proto.where)
 
     def unlock(self):
         if isinstance(self.proto, GrblLink):

@@ -51,9 +51,11 @@ class GcodeDialect:
         Send these before :meth:`preamble`: GRBL with homing enabled starts
         locked in alarm and refuses G-code until ``$H``.
         """
-        if not self.machine["controller.homing"]:
-            return []
-        return [self.home_command(), self.set_position(*self.home_position())]
+        if self.machine["controller.homing"]:
+            return [self.home_command(), self.set_position(*self.home_position())]
+        if self.machine.values.get("controller.head_homing"):
+            return [self.home_command(["head"]), self.set_position(None, self.home_position()[1])]
+        return []
 
     def home_position(self):
         """(ring deg, head mm) declared at the home switches."""
@@ -72,11 +74,15 @@ class GcodeDialect:
 
     def jog_lines(self, axis, delta, feed):
         """Move ``axis`` ("ring" or "head") by ``delta`` from wherever it is, then absolute again."""
-        return [f"G91 G1 {self._letter(axis)}{fmt(delta)} F{fmt(feed)}", "G90"]
+        return ["G91", f"G1 {self._letter(axis)}{fmt(delta)} F{fmt(feed)}", "G90"]
+
+    def _words(self, ring_deg, head_mm):
+        words = [] if ring_deg is None else [f"{self.ring_axis}{fmt(ring_deg)}"]
+        return " ".join(words + ([] if head_mm is None else [f"{self.head_axis}{fmt(head_mm)}"]))
 
     def set_position(self, ring_deg, head_mm):
-        """Declare the current position (work coordinates) without moving."""
-        return f"G10 L20 P1 {self.ring_axis}{fmt(ring_deg)} {self.head_axis}{fmt(head_mm)}"
+        """Declare the current position (work coordinates) without moving (None: that axis not)."""
+        return f"G10 L20 P1 {self._words(ring_deg, head_mm)}"
 
     def move_line(self, move, prev=None):
         """One ``G1`` line to ``move``'s absolute target, with its feed.
@@ -160,7 +166,7 @@ class MarlinDialect(GcodeDialect):
         return "G28 " + " ".join(self._letter(a) for a in axes)
 
     def set_position(self, ring_deg, head_mm):
-        return f"G92 {self.ring_axis}{fmt(ring_deg)} {self.head_axis}{fmt(head_mm)}"
+        return f"G92 {self._words(ring_deg, head_mm)}"
 
     def dwell(self, seconds):
         return f"G4 P{round(seconds * 1000)}"

@@ -11,6 +11,13 @@ then, as the winding goes::
     {"kind": "done", "step": 17, "pin": 42, "t": ...}     step 17 EXECUTED (its sync answered)
     {"kind": "stop", "reason": "interrupted" | "failed", "error": "...", "step": 18,
      "pin": 7, "head": "in" | "out" | "unknown", "position": [ring_deg, head_mm] | null, "t": ...}
+    {"kind": "recover", "banner": true, "alarm": "ALARM:3", "alarm_cleared": true,
+     "mpos": [x, y, z], "position_wiped": false, "position": [ring_deg, head_mm] | null, "t": ...}
+                                          what a resume attempt learned on reconnecting (written
+                                          before it asks or refuses anything)
+    {"kind": "declared", "position": [ring_deg, head_mm], "how": "...", "t": ...}
+                                          a resume told the firmware where it stands (G10 L20 / G92)
+    {"kind": "refused", "error": "...", "t": ...}           a resume attempt that refused
     {"kind": "resume", "from_step": 18, "t": ...}          a --resume (or --from-step) began here
     {"kind": "finished", "t": ...}
 
@@ -61,6 +68,7 @@ class JournalState:
 
     next_step: int = 0                                # the first step not yet executed
     next_move: int = 0                                # the first move of it not yet executed
+    epoch: list = field(default_factory=list)         # stop/recover/declared/refused since the last resume
 
     @property
     def last_stop(self):
@@ -119,8 +127,12 @@ def read_journal(path):
                 state.next_move = rec["move"] + 1
         elif kind == "stop":
             state.stops.append(rec)
+            state.epoch.append(rec)
+        elif kind in ("recover", "declared", "refused"):
+            state.epoch.append(rec)
         elif kind == "resume":
             state.resumes.append(rec)
+            state.epoch = []
             # --from-step moves the next step: steps from there on are to be wound again
             start = rec.get("from_step", state.next_step)
             state.done = [s for s in state.done if s < start]
@@ -148,6 +160,16 @@ _FIELDS = {
              "move": (True, "index", "a move index (a whole number >= 0)")},
     "resume": {"from_step": (False, "step_or_end", "a step index 0..{steps}"),
                "from_move": (False, "index", "a move index (a whole number >= 0)")},
+    "recover": {"banner": (False, "bool", "true or false"),
+                "alarm": (False, "str_or_null", "a text"),
+                "alarm_cleared": (False, "bool", "true or false"),
+                "position_wiped": (False, "bool", "true or false"),
+                "mpos": (False, "position", "null or a list of axis positions (numbers)"),
+                "position": (False, "position", "null or [ring_deg, head_mm]")},
+    "declared": {"position": (True, "position", "[ring_deg, head_mm]"),
+                 "how": (False, "str", "a text")},
+    "refused": {"error": (False, "str_or_null", "a text"),
+                "moved": (False, "bool", "true or false")},
     "stop": {"reason": (False, "str", "a text"),
              "error": (False, "str_or_null", "a text"),
              "next_step": (False, "step_or_end", "a step index 0..{steps}"),
@@ -165,6 +187,8 @@ def _valid(check, v, steps):
         return _is_int(v) and v >= 0
     if check == "str":
         return isinstance(v, str)
+    if check == "bool":
+        return isinstance(v, bool)
     if check == "str_or_null":
         return v is None or isinstance(v, str)
     if check == "at":

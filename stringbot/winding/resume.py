@@ -34,6 +34,8 @@ import math
 from ..errors import BadInput, MachineFailure
 from ..links import open_link
 from .locate import TOL, _near, _point, _side, locate, start_point, tolerance  # noqa: F401
+from .operator import Operator
+from .recover import Found, recover_gcode
 from .journal import Journal, read_journal
 from .loop import Winder
 
@@ -94,11 +96,12 @@ def _journal_point(state):
 
 
 def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=None, progress=None,
-                link_options=None):
+                link_options=None, jog=None, say=None):
     """Continue the winding of ``job`` from its journal (or restart at ``from_step``, from 1).
 
-    ``confirm(question) -> bool`` and ``choose(question, choices) -> choice`` ask the
-    operator (None: do not ask; ``--yes``).
+    ``head_side`` is the operator's statement (``--head-side``); ``confirm(question) -> bool``,
+    ``choose(question, choices) -> choice`` and ``jog(prompt) -> str`` ask the operator, ``say``
+    shows an instruction (None: nobody to ask, ``--yes``).  See :mod:`stringbot.winding.recover`.
     """
     if job.dry_run:
         raise BadInput("a dry run's simulated machine lives only as long as its command, so there is "
@@ -115,40 +118,35 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
     s, m = _journal_point(state)
     if s < len(steps) and m >= len(steps[s].moves):
         s, m = s + 1, 0               # only the step's dwell was left: its moves are all done
+    operator = Operator(head_side=head_side, confirm=confirm, choose=choose, jog=jog, say=say)
     journal = Journal.reopen(job.journal_path, durable=not job.fresh_world)
     link = None
     try:
         link = open_link(job.url, machine, **(link_options or {}))
         winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
         winder.state = winder.state.CONNECTING
-        where = None
         with winder.stopping_on_ctrl_c("while reconnecting"):
             if hasattr(link, "reconnect"):
-                here, lost, where = _recover_gcode(link, job, state, s, m, head_side, confirm, choose)
+                found = recover_gcode(link, job, state, s, m, operator, journal, from_step)
             else:
-                here, lost = _recover_servo(link, job, state, s, m, choose)
-        if where is None and from_step is None:
-            where = (locate(here, steps, s, m, machine, tolerance(link)) if s < len(steps)
-                     else (len(steps), 0))
-            if where is None:
-                raise MachineFailure(f"the machine stands at ring {here[0]:.3f}, head {here[1]:.3f}, which "
-                                     f"is not on the path the journal expects (step {s + 1}, move {m + 1}); "
-                                     "check it, then restart with --from-step N")
+                found = _servo_found(link, job, state, s, m, operator, journal, from_step)
+        log.info("resume: %s; machine at ring %.3f, head %.3f", found.how, *found.here)
+        s2, k2 = found.where
         if from_step is None:
-            s2, k2 = where
             for i in range(state.next_step, s2):
                 journal.done(i, steps[i].pin)   # executed, now known from the machine's position
             if s2 < len(steps):
                 winder.ask(f"Resume at pin {steps[s2].pin} (step {s2 + 1} of {len(steps)}, move {k2 + 1})?")
         else:
-            # after a fix by hand the machine may stand anywhere with the head IN: the
-            # restarted step's first move is a ring turn with the head IN, safe from anywhere
-            if _side(machine, here[1]) != "in":
-                raise BadInput("the head is OUT; --from-step needs it IN: resume first, or move it in by hand")
-            s2, k2 = from_step - 1, 0
             winder.ask(f"Restart from step {from_step} (pin {steps[s2].pin}); the steps from there on "
                        "are wound again. Go on?")
-        journal.append({"kind": "resume", "from_step": s2, "from_move": k2, "position_lost": lost})
+        if hasattr(link, "here"):
+            # the next line names only the axis its move changes: from the planned start of the
+            # move when the machine stands on that move's path, else from where it was found
+            link.here = (start_point(steps, s2, machine) if k2 == 0 else _point(steps[s2].moves[k2 - 1])) \
+                if found.on_path and s2 < len(steps) else tuple(found.here)
+        journal.append({"kind": "resume", "from_step": s2, "from_move": k2, "position_lost": found.lost,
+                        "how": found.how})
         if s2 >= len(steps):
             return winder.wind(len(steps))
         return winder.wind(s2, first_moves=steps[s2].moves[k2:])
@@ -158,90 +156,30 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
         journal.close()
 
 
-def _recover_gcode(link, job, state, s, m, head_side, confirm, choose):
-    """Reconnect a G-code machine and find where it stands; returns ((ring, head), position_lost)."""
-    lost = link.reconnect().position_lost
-    stop = state.last_stop
-    if stop is not None and stop.get("position_lost") and not state_resumed_after(state, stop):
-        lost = True
-    here = None if lost else link.position()
-    where = None
-    if here is None:
-        lost = True
-        here, where = _lost_position(link, job, s, m, head_side, confirm, choose)
-    link.restore_modal()
-    return here, lost, where
-
-
-def state_resumed_after(state, stop):
-    return bool(state.resumes) and state.resumes[-1].get("t", 0) > stop.get("t", 0)
-
-
-def _lost_position(link, job, s, m, head_side, confirm, choose):
-    """The firmware lost its position: decide where the machine is and tell it (homing if it can)."""
+def _servo_found(link, job, state, s, m, operator, journal, from_step):
+    """The servo link's recovery, journaled and located like a G-code machine's."""
     machine, steps = job.machine, job.steps
-    if s >= len(steps):
-        before = after = _point(steps[-1].moves[-1])
-    else:
-        before = _point(steps[s].moves[m - 1]) if m > 0 else start_point(steps, s, machine)
-        after = _point(steps[s].moves[m])
-    sides = {_side(machine, before[1]), _side(machine, after[1])}
-    if len(sides) == 1:
-        side = sides.pop()
-    elif head_side is not None:
-        side = head_side
-    elif choose is not None:
-        side = choose("The machine lost its position while the thread head was moving in or out. "
-                      "Look at it: is the eyelet inside the pin circle (in) or outside (out)?", ["in", "out"])
-    else:
-        raise BadInput("the machine lost its position while the thread head was moving in or out; "
-                       "look at it and give --head-side in or --head-side out")
-    if _side(machine, before[1]) == side:
-        here, point = before, (s, m)
-    else:
-        here, point = after, _next(steps, s, m + 1)     # the head move had finished
-    pins = machine.pins
-    gap = (here[0] - machine["ring.pin0_angle_deg"]) / machine.pitch_deg
-    if confirm is not None and not confirm(
-            f"The firmware lost its position. The journal puts the ring at {here[0]:.3f} deg (pin "
-            f"position {gap % pins:.1f}) with the head {side.upper()}. Is that where it stands?"):
-        raise BadInput("the machine is not where the journal says; move it there by hand "
-                       "(or restart with --from-step N)")
-    link.set_position(*here)
-    if machine["controller.homing"]:
-        head_in = machine["head.in_mm"]
-        if side == "out":
-            link.move_to(here[0], head_in, axis="head")       # back in through the gap it stands at
-            here = (here[0], head_in)
-            point = _after_point(steps, s, here)
-        link.home()                                           # the head is IN: the ring turns freely
-        home_ring = machine["controller.home_ring_deg"]
-        home_head = machine["controller.home_head_mm"]
-        home_head = head_in if home_head is None else home_head
-        turns = round((here[0] - home_ring) / 360.0)
-        link.set_position(home_ring + 360.0 * turns, home_head)
-        if home_head != head_in:
-            link.move_to(home_ring + 360.0 * turns, head_in, axis="head")
-        link.move_to(here[0], head_in, axis="ring")
-    return here, point
-
-
-def _next(steps, s, k):
-    """(step, move) after move ``k - 1`` of step ``s``, rolling over to the next step."""
-    if s < len(steps) and k >= len(steps[s].moves):
-        return (s + 1, 0)
-    return (s, k)
-
-
-def _after_point(steps, s, here):
-    """The head came IN at ``here`` during step ``s``: through the approach gap (the hook is
-    undone: go on from the move after the approach) or the far gap (the hook is done)."""
-    moves = steps[s].moves
-    for k in range(len(moves) - 1, -1, -1):
-        if _near(_point(moves[k]), here):
-            return _next(steps, s, k + 1)
-    raise MachineFailure(f"the head came in at ring {here[0]:.3f}, which is neither gap of step {s + 1}; "
-                         "check the machine, then restart with --from-step N")
+    try:
+        here, lost = _recover_servo(link, job, state, s, m, operator.choose)
+        journal.append({"kind": "recover", "banner": False, "alarm": None,
+                        "position_wiped": bool(lost), "position": [float(v) for v in here]})
+        if from_step is not None:
+            if _side(machine, here[1]) != "in":
+                raise BadInput("the head is OUT; --from-step needs it IN: resume first, or move it in by hand")
+            return Found(here, (from_step - 1, 0), lost, "the servos' positions", on_path=False)
+        where = (locate(here, steps, s, m, machine, tolerance(link)) if s < len(steps)
+                 else (len(steps), 0))
+        if where is None:
+            raise MachineFailure(f"the machine stands at ring {here[0]:.3f}, head {here[1]:.3f}, which "
+                                 f"is not on the path the journal expects (step {s + 1}, move {m + 1}); "
+                                 "check it, then restart with --from-step N")
+        return Found(here, where, lost, "the servos' positions")
+    except (BadInput, MachineFailure) as exc:
+        try:
+            journal.append({"kind": "refused", "error": str(exc), "moved": False})
+        except OSError:
+            log.warning("could not journal the refusal")
+        raise
 
 
 def _recover_servo(link, job, state, s, m, choose=None):
