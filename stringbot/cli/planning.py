@@ -54,8 +54,13 @@ class _Lines(click.ParamType):
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
+@click.option("--colors", default=None, metavar="LIST|auto:N",
+              help="Thread colours, one layer each: names or #rrggbb (black,crimson,#1f5bb5), or auto:N to pick N "
+                   "from the picture; plans in colour (a version 2 plan).")
+@click.option("--background", default=None, metavar="white|black|#rrggbb",
+              help="Colour of the board the threads are wound over [default: white]; plans in colour.")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame, crop, start_pin, size, lines,
-             importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache):
+             importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache, colors, background):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
@@ -75,6 +80,14 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
             raise BadInput(f"--pins {pins} differs from machine {machine!r} with {ring} pins; give one of them")
         pins = ring
     pins = 300 if pins is None else pins
+    if colors is not None or background is not None:
+        from .colour import plan_colour_cmd
+        ctx = click.get_current_context()
+        given = {name for name in ctx.params
+                 if ctx.get_parameter_source(name) is click.core.ParameterSource.COMMANDLINE}
+        return plan_colour_cmd(image=image, output=output, preview=preview, colors=colors, background=background,
+                               pins=pins, mach=mach, machine=machine, frame=frame, crop=crop, start_pin=start_pin,
+                               size=size, lines=lines, no_cache=no_cache, given=given)
     preview = preview or os.path.splitext(output)[0] + ".png"
     check_output_path(output, what="plan")
     check_output_path(preview, what="preview")
@@ -126,7 +139,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
 @click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str), help="PNG to write.")
 @click.option("--size", type=int, default=1001, show_default=True, help="Side of the drawing in pixels.")
 def render_cmd(plan, output, size):
-    """Draw PLAN as black 1-pixel threads on white."""
+    """Draw PLAN as black 1-pixel threads on white (a colour plan: as woven, in colour)."""
     from .._files import check_not_same_file, check_output_path, write_atomic
     from ..planner.plan_file import read_plan
     from ..planner.render import draw, png_bytes
@@ -136,6 +149,9 @@ def render_cmd(plan, output, size):
     check_output_path(output, what="drawing")
     check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
+    if not p.is_mono:
+        from .colour import render_colour
+        return render_colour(p, output, size)
     write_atomic(output, png_bytes(draw(p, size=size)))
     click.echo(f"{len(p.chord_list())} chords drawn at {size} x {size} -> {output}")
 
@@ -144,7 +160,9 @@ def render_cmd(plan, output, size):
 @click.argument("plan", type=click.Path(path_type=str))
 @click.argument("image", required=False, type=click.Path(path_type=str))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-def score_cmd(plan, image, as_json):
+@click.option("--colour", "colour", is_flag=True,
+              help="Score a one-colour plan as a colour plan would be (always so for a colour plan).")
+def score_cmd(plan, image, as_json, colour):
     """Score PLAN against IMAGE (default: the plan's source).
 
     The paper's SSIM (section 4.1: 1-pixel chords at 1001 px, both at 201 px,
@@ -153,6 +171,10 @@ def score_cmd(plan, image, as_json):
     woven at 2048 px with a thread 1/2048 of the frame wide, box-filtered to
     512 px, against the picture at 512 px, both blurred by sigma 2 px: RMS over
     the frame, gray levels 0..1, lower is better).
+
+    A colour plan (and any plan with --colour) is scored in colour: the mean
+    CIEDE2000 between the picture and the plan as woven (both at 201 px,
+    blurred by sigma 2 px; lower is better) and the SSIM of their luminances.
     """
     import json
     import os
@@ -169,6 +191,8 @@ def score_cmd(plan, image, as_json):
         beside = os.path.join(os.path.dirname(plan), image)
         if not os.path.isabs(image) and not os.path.exists(image) and os.path.exists(beside):
             image = beside  # a relative source path, taken from the plan's folder
+    if colour or not p.is_mono:
+        return _score_colour(p, plan, image, as_json)
     gray = p.parameters.get("gray_requested", "decolor")
     weights = p.parameters.get("gray_weights")
     if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):
@@ -192,3 +216,20 @@ def score_cmd(plan, image, as_json):
                    f"{r['ssim_uniform']:.4f})\n"
                    f"{'blurred':<10} {r['ssim_blurred']:.4f}   (7x7: {r['ssim_uniform_blurred']:.4f})\n"
                    f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)")
+
+
+def _score_colour(p, plan, image, as_json):
+    import json
+
+    from .colour import score_colour
+
+    r = score_colour(p, plan, image)
+    if as_json:
+        click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "colors": p.colors,
+                               "background": p.background, "lines": r["lines"],
+                               **{k: round(v, 4) for k, v in r.items() if k != "lines"}}))
+        return
+    click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} {p.method}\n"
+               f"{'threads':<10} {', '.join(p.colors)} on {p.background}\n{'lines':<10} {r['lines']}\n"
+               f"{'colour':<10} {r['delta_e']:.2f}   (mean CIEDE2000 as woven, blurred; lower is better)\n"
+               f"{'SSIM':<10} {r['ssim']:.4f}   (luminance; blurred: {r['ssim_blurred']:.4f})")

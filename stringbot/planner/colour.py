@@ -1,0 +1,288 @@
+"""Colour thread paintings: a joint greedy over (thread colour, chord) against the woven piece.
+
+Threads occlude rather than add.  The piece is modelled as the thread model
+describes it (:mod:`stringbot.planner.thread`), in linear light
+(:func:`stringbot.planner.palette.to_linear`): each layer ``k`` (one thread
+colour ``c_k``, one continuous thread) covers a share ``a_k`` of each pixel,
+the coverages of its threads adding up and capped at 1; the layers lie in
+winding order, later ones on top, the board ``B`` showing through::
+
+    U_0 = B,   U_k = U_{k-1} (1 - a_k) + c_k a_k,   piece = U_K.
+
+The piece is affine in each ``a_k`` on its own: raising ``a_k`` by ``d``
+changes the pixel by ``d T_k (c_k - U_{k-1})``, ``T_k`` the light the layers
+above let through (the product of their ``1 - a_j``).  The error is CIEDE-like:
+the squared CIELAB difference from the picture, linearised at the picture's
+colour (``|J (piece - target)|^2``, ``J`` the Jacobian of linear RGB -> Lab at
+the target pixel), so with ``R = piece - target`` and ``D_k = T_k (c_k -
+U_{k-1})`` a thread that raises ``a_k`` by ``d`` on a pixel changes its error
+by ``2 d R^T M D_k + d^2 D_k^T M D_k`` (``M = J^T J``): two numbers per
+pixel and layer, kept up to date as threads are laid.
+
+The joint greedy: every layer has its own thread, at its own current pin.
+At each *decision* the best chord from every layer's current pin is found and
+the (layer, chord) that lowers the error most is laid; that layer then goes
+on for up to ``run - 1`` more chords (each its best from where it stands) as
+long as they lower the error.  It stops when the line budget is spent or no
+chord of any layer lowers the error.  The layers are then wound in their
+order, each one continuous thread: ``len(colors) - 1`` spool changes.
+
+Chords are the chord-pixel incidence of the working size (the mono planner's
+cache); a chord covers each of its pixels by the thread's width times its
+length per pixel (``width_px * sqrt(1 + slope^2)``), which is the thread
+model's footprint summed across the thread (exact in total, not spread over
+neighbouring pixels).  The layer order is chosen by planning every order
+at a quarter of the line budget and keeping the best (see docs/planner.md,
+"Colour").
+"""
+
+import itertools
+import logging
+
+import numpy as np
+
+from .palette import hex_to_rgb, to_linear
+from .progress import report
+
+log = logging.getLogger(__name__)
+
+__all__ = ["lab", "lab_jacobian", "apply_jacobian", "ColourModel", "joint_greedy", "chord_weights_px"]
+
+# linear sRGB -> XYZ (D65), normalised by the white point: t = Q rgb; Lab = P f(t) + (-16, 0, 0)
+_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
+                 [0.2126729, 0.7151522, 0.0721750],
+                 [0.0193339, 0.1191920, 0.9503041]])
+_Q = _XYZ / _XYZ.sum(axis=1, keepdims=True)
+_QT = np.ascontiguousarray(_Q.T)
+_PT = np.array([[0.0, 116.0, 0.0], [500.0, -500.0, 0.0], [0.0, 200.0, -200.0]]).T
+_LAB0 = np.array([-16.0, 0.0, 0.0])
+_CUBE = (6.0 / 29.0) ** 3
+_SLOPE = 1.0 / (3 * (6.0 / 29.0) ** 2)
+
+
+def _f_fp(t):
+    """CIELAB's ``f`` and its derivative at ``t`` (normalised XYZ)."""
+    c = np.cbrt(np.maximum(t, 1e-12))
+    big = t > _CUBE
+    return np.where(big, c, t * _SLOPE + 4.0 / 29.0), np.where(big, 1.0 / (3.0 * c * c), _SLOPE)
+
+
+def lab(linear):
+    """Linear RGB (n, 3) -> CIELAB (n, 3), D65."""
+    f, _ = _f_fp(np.asarray(linear, dtype=np.float64) @ _QT)
+    return f @ _PT + _LAB0
+
+
+def lab_jacobian(linear):
+    """CIELAB at each of ``linear`` (n, 3) and what its Jacobian needs.
+
+    Returns
+    -------
+    lab : ndarray, shape (n, 3)
+    fp : ndarray, shape (n, 3)
+        ``J d = P (fp * (Q d))`` for a change ``d`` of linear RGB (see :func:`apply_jacobian`).
+    """
+    f, fp = _f_fp(np.asarray(linear, dtype=np.float64) @ _QT)
+    return f @ _PT + _LAB0, fp
+
+
+def apply_jacobian(fp, d):
+    """``J d`` per pixel: the change of CIELAB for a change ``d`` (n, 3) of linear RGB."""
+    return ((d @ _QT) * fp) @ _PT
+
+
+def chord_weights_px(space, size, width_px):
+    """Share of each pixel of its 1-pixel line a chord covers: ``width_px * sqrt(1 + slope^2)`` (< 1)."""
+    from .chords import pin_pixels
+
+    rc = pin_pixels(space.pin_xy, size).astype(np.float64)
+    d = np.abs(rc[space.ends[:, 1]] - rc[space.ends[:, 0]])
+    major, minor = d.max(axis=1), d.min(axis=1)
+    w = width_px * np.sqrt(1.0 + (minor / np.maximum(major, 1.0)) ** 2)
+    return np.minimum(w, 0.999).astype(np.float32)
+
+
+class ColourModel:
+    """The woven piece under construction: per-layer coverage and the error terms of every pixel.
+
+    Coverage of a layer on a pixel: its threads cross the pixel at random
+    places, so the share they leave uncovered is the product of what each
+    leaves, ``1 - a = prod (1 - w_i)``; a thread of share ``w`` raises ``a`` by
+    ``(1 - a) w``.  (On a canvas where a thread is a pixel wide or more, the
+    thread model's capped sum is this union; at the working size a thread is a
+    fifth of a pixel.)
+
+    Parameters
+    ----------
+    target : ndarray of float, shape (n, 3)
+        The picture, linear RGB, flat pixels.
+    weight : ndarray of float, shape (n,)
+        Pixel weights (0 outside the frame).
+    board : sequence of float
+        The board, linear RGB.
+    colors : ndarray of float, shape (K, 3)
+        The layers' thread colours, linear RGB, in winding order (later on top).
+    """
+
+    def __init__(self, target, weight, board, colors):
+        self.target = np.asarray(target, dtype=np.float64)
+        self.target_lab = lab(self.target)
+        self.n = len(self.target)
+        self.weight = np.asarray(weight, dtype=np.float64)
+        self.board = np.asarray(board, dtype=np.float64)
+        self.colors = np.asarray(colors, dtype=np.float64)
+        self.K = len(self.colors)
+        self.A = np.zeros((self.K, self.n), dtype=np.float32)   # coverage per layer, in [0, 1)
+        # per layer and pixel, 2 (1 - a) r^T J D + i (1 - a)^2 |J D|^2 (weighted): a thread of share w
+        # changes the error by w Re + w^2 Im, so a chord's change is one gather and one sum
+        self.Z = np.zeros((self.K, self.n), dtype=np.complex64)
+        for lo in range(0, self.n, 65536):
+            self.refresh(np.arange(lo, min(lo + 65536, self.n)))
+
+    def piece(self, pixels=None):
+        """The woven colour (linear RGB) of ``pixels`` (all when None), shape (m, 3)."""
+        p = np.arange(self.n) if pixels is None else pixels
+        a = self.A[:, p].astype(np.float64)
+        u = np.empty((len(p), 3))
+        u[:] = self.board
+        for k in range(self.K):
+            u += a[k][:, None] * (self.colors[k] - u)
+        return u
+
+    def refresh(self, p):
+        """Recompute the error terms of pixels ``p`` (Gauss-Newton on the CIELAB difference)."""
+        K, m = self.K, len(p)
+        a = self.A[:, p].astype(np.float64)
+        u = np.empty((m, 3))
+        u[:] = self.board
+        under = np.empty((K, m, 3))
+        for k in range(K):
+            under[k] = u
+            u += a[k][:, None] * (self.colors[k] - u)
+        now, fp = lab_jacobian(u)
+        w = self.weight[p]
+        r = (now - self.target_lab[p]) * w[:, None]
+        left = 1.0 - a
+        t = np.ones((K, m))                                    # light the layers above let through
+        for k in range(K - 2, -1, -1):
+            t[k] = t[k + 1] * left[k + 1]
+        jd = (((t[..., None] * (self.colors[:, None, :] - under)) @ _QT) * fp) @ _PT
+        g = (jd * r).sum(axis=-1)
+        h = (jd * jd).sum(axis=-1) * w
+        self.Z[:, p] = 2.0 * left * g + 1j * (left * left * h)
+
+    def error(self):
+        """Sum over pixels of the weighted squared CIELAB difference."""
+        d = lab(self.piece()) - self.target_lab
+        return float((self.weight * (d * d).sum(axis=1)).sum())
+
+
+class _PinFans:
+    """The chords from each pin with (every ``sample``-th of) their pixels and coverage, built lazily."""
+
+    def __init__(self, space, indptr, indices, weights, sample=1):
+        self.space, self.indptr, self.indices, self.weights = space, indptr, indices, weights
+        self.sample = int(sample)
+        self.cache = {}
+
+    def get(self, p):
+        fan = self.cache.get(p)
+        if fan is None:
+            row = self.space.index[p]
+            others = np.flatnonzero(row >= 0)
+            chords = row[others]
+            lo = self.indptr[chords]
+            counts = (self.indptr[chords + 1] - lo + self.sample - 1) // self.sample
+            starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+            pos = (np.arange(counts.sum()) - np.repeat(starts, counts)) * self.sample + np.repeat(lo, counts)
+            pix = self.indices[pos].astype(np.int64)
+            w = self.weights[chords].astype(np.float64)
+            fan = self.cache[p] = (others, chords, pix, starts, w)
+        return fan
+
+
+def joint_greedy(space, indptr, indices, model, weights, lines, *, run=25, start_pins=None, min_loop=3, sample=1):
+    """Lay up to ``lines`` threads over the layers of ``model`` (see the module notes).
+
+    Parameters
+    ----------
+    space : ChordSpace
+    indptr, indices : ndarray
+        Chord pixels (:func:`stringbot.planner.chords.chord_pixels`).
+    model : ColourModel
+        Updated in place.
+    weights : ndarray of float, shape (m,)
+        Coverage per pixel of each chord (:func:`chord_weights_px`).
+    lines : int
+        Line budget over all layers.
+    run : int
+        Chords a layer lays in a row once chosen (at most; fewer when they stop lowering the error).
+    start_pins : sequence of int, optional
+        First pin of each layer (default 0).
+    min_loop : int
+        A layer never goes back to its last ``min_loop`` pins.
+    sample : int
+        Judge a chord by every ``sample``-th of its pixels (it is laid on all of them).
+
+    Returns
+    -------
+    list of list of int
+        The pin sequence of each layer (a layer that laid nothing has one pin).
+    """
+    K = model.K
+    fans = _PinFans(space, indptr, indices, weights, sample)
+    seqs = [[int(p)] for p in (start_pins if start_pins is not None else [0] * K)]
+    done = [False] * K
+
+    def best(k):
+        others, chords, pix, starts, w = fans.get(seqs[k][-1])
+        z = np.add.reduceat(model.Z[k].take(pix), starts)
+        gain = w * z.real + w * w * z.imag
+        for q in seqs[k][-min_loop:]:
+            i = int(np.searchsorted(others, q))
+            if i < len(others) and others[i] == q:
+                gain[i] = np.inf
+        i = int(np.argmin(gain))
+        return float(gain[i]), int(others[i]), int(chords[i])
+
+    def lay(k, nxt, chord):
+        p = indices[indptr[chord]:indptr[chord + 1]].astype(np.int64)
+        model.A[k, p] += (1.0 - model.A[k, p]) * weights[chord]
+        model.refresh(p)
+        seqs[k].append(nxt)
+
+    total = 0
+    while total < lines:
+        if total % 200 < 1:
+            report("colour", total, lines)
+        cands = [(best(k), k) for k in range(K) if not done[k]]
+        if not cands:
+            break
+        (gain, nxt, chord), k = min(cands)
+        for (g, _, _), j in cands:
+            done[j] = g >= 0
+        if gain >= 0:
+            break
+        lay(k, nxt, chord)
+        total += 1
+        for _ in range(run - 1):
+            if total >= lines:
+                break
+            gain, nxt, chord = best(k)
+            if gain >= 0:
+                break
+            lay(k, nxt, chord)
+            total += 1
+            if total % 200 == 0:
+                report("colour", total, lines)
+    return seqs
+
+
+def orders(K, limit=24):
+    """The layer orders to try: all of them up to ``limit``."""
+    perms = list(itertools.permutations(range(K)))
+    return perms[:limit]
+
+
+def linear_colors(hex_colors):
+    return np.array([to_linear(hex_to_rgb(c)) for c in hex_colors])
