@@ -197,6 +197,9 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
     try:
         link = open_link(job.url, machine, **(link_options or {}))
         winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
+        if not job.plan.is_mono:    # the journal says whose thread is on: only a new layer's is asked for
+            from .layers import Threads, tied_layer
+            winder.threads = Threads(job, journal, tied=tied_layer(state), confirm=confirm)
         winder.state = winder.state.CONNECTING
         where = None
         with winder.stopping_on_ctrl_c("while reconnecting"):

@@ -153,8 +153,12 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None):
                         confirm=confirm)
         winder.start(home=job.machine["controller.homing"])
         first = job.steps[0]
-        winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
-                   "then go on?")
+        if job.plan.is_mono:
+            winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
+                       "then go on?")
+        else:                       # the thread's colour, and a spool change before each later layer
+            from .layers import Threads
+            winder.threads = Threads(job, journal, confirm=confirm)
         return winder.wind(0)
     finally:
         if link is not None:
@@ -178,6 +182,11 @@ def dry_run_problem(job):
                "the winding is unchecked"
     seq = list(job.plan.sequence)
     problems = []
+    if not job.plan.is_mono and wraps == seq:
+        from .layers import layer_problems
+        wrong = layer_problems(job.plan, rec["wraps"])
+        if wrong:
+            problems.append(wrong)
     if collisions:
         first = collisions[0]
         problems.append(f"{len(collisions)} collision(s) of the head with pins (first: "
