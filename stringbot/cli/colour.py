@@ -55,7 +55,8 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     try:
         with reporting(shown):
             p = plan_colour(image, colors=palette, background=board, pins=pins, frame=frame, size=size,
-                            crop=parse_crop(crop) if crop else None, lines=lines, start_pin=start_pin, model=model,
+                            crop=parse_crop(crop) if crop else None, lines=lines,
+                            start_pin=start_pin if "start_pin" in given else None, model=model,
                             cache=not no_cache)
     finally:
         shown.close()
@@ -138,4 +139,5 @@ def score_colour(plan, plan_path, image):
     from ..planner.image import read_picture
 
     pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
-    return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background)
+    return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background,
+                        width=_width(plan))

@@ -1,39 +1,40 @@
 """Colour thread paintings: a joint greedy over (thread colour, chord) against the woven piece.
 
-Threads occlude rather than add.  The piece is modelled as the thread model
-describes it (:mod:`stringbot.planner.thread`), in linear light
+Threads occlude rather than add.  The piece is modelled in linear light
 (:func:`stringbot.planner.palette.to_linear`): each layer ``k`` (one thread
 colour ``c_k``, one continuous thread) covers a share ``a_k`` of each pixel,
-the coverages of its threads adding up and capped at 1; the layers lie in
-winding order, later ones on top, the board ``B`` showing through::
+and the layers lie in winding order, later ones on top, the board ``B``
+showing through::
 
     U_0 = B,   U_k = U_{k-1} (1 - a_k) + c_k a_k,   piece = U_K.
 
-The piece is affine in each ``a_k`` on its own: raising ``a_k`` by ``d``
-changes the pixel by ``d T_k (c_k - U_{k-1})``, ``T_k`` the light the layers
-above let through (the product of their ``1 - a_j``).  The error is CIEDE-like:
-the squared CIELAB difference from the picture, linearised at the picture's
-colour (``|J (piece - target)|^2``, ``J`` the Jacobian of linear RGB -> Lab at
-the target pixel), so with ``R = piece - target`` and ``D_k = T_k (c_k -
-U_{k-1})`` a thread that raises ``a_k`` by ``d`` on a pixel changes its error
-by ``2 d R^T M D_k + d^2 D_k^T M D_k`` (``M = J^T J``): two numbers per
-pixel and layer, kept up to date as threads are laid.
+A layer's threads cover a pixel as opaque threads lying across it at
+unrelated places: each leaves ``1 - w`` of what was left uncovered, ``w`` its
+width times its length in the pixel (the thread model's footprint summed
+across the thread, :func:`chord_weights_px`); the render and the score combine
+the thread model's footprints the same way
+(:func:`stringbot.planner.colour_render.union_coverage`).
 
-The joint greedy: every layer has its own thread, at its own current pin.
-At each *decision* the best chord from every layer's current pin is found and
-the (layer, chord) that lowers the error most is laid; that layer then goes
-on for up to ``run - 1`` more chords (each its best from where it stands) as
-long as they lower the error.  It stops when the line budget is spent or no
-chord of any layer lowers the error.  The layers are then wound in their
-order, each one continuous thread: ``len(colors) - 1`` spool changes.
+The error is the squared CIELAB difference between piece and picture, pixel
+by pixel (CIE76; the CIEDE2000 weights were measured and lose, see
+docs/planner.md, "Colour").  The piece is affine in each ``a_k`` on its own:
+raising ``a_k`` by ``d`` changes the pixel by ``d D_k``, ``D_k = T_k (c_k -
+U_{k-1})`` with ``T_k`` the light the layers above let through; to second
+order (Gauss-Newton, ``J`` the Jacobian of linear RGB -> Lab at the piece)
+the error changes by ``2 d r^T J D_k + d^2 |J D_k|^2``, ``r`` the Lab
+difference.  These two numbers per pixel and layer are kept up to date (as
+one complex number, so that judging a chord is one gather and one sum) as
+threads are laid.
 
-Chords are the chord-pixel incidence of the working size (the mono planner's
-cache); a chord covers each of its pixels by the thread's width times its
-length per pixel (``width_px * sqrt(1 + slope^2)``), which is the thread
-model's footprint summed across the thread (exact in total, not spread over
-neighbouring pixels).  The layer order is chosen by planning every order
-at a quarter of the line budget and keeping the best (see docs/planner.md,
-"Colour").
+The joint greedy: every layer is its own thread, at its own current pin (a
+layer starts at an end of the chord that lowers the error most, or where it
+is told).  At each *decision* the best chord from every layer's current pin
+is found and the (layer, chord) that lowers the error most is laid; that
+layer then goes on for up to ``run - 1`` more chords (each its best from
+where it stands) as long as they lower the error.  It stops when the line
+budget is spent or no chord of any layer lowers the error.  The layers are
+then wound in their order, each one continuous thread: one spool change
+between two layers.
 """
 
 import itertools
@@ -177,6 +178,73 @@ class ColourModel:
         return float((self.weight * (d * d).sum(axis=1)).sum())
 
 
+def composite_jacobian(alpha, board, colors):
+    """The piece (linear RGB) for coverages ``alpha`` (K, m) and its derivative by each layer's coverage.
+
+    Returns
+    -------
+    piece : ndarray, shape (m, 3)
+    d : ndarray, shape (K, m, 3)
+        ``d[k]``: the change of the piece per unit of ``alpha[k]`` (``T_k (c_k - U_{k-1})``).
+    """
+    K, m = alpha.shape
+    u = np.empty((m, 3))
+    u[:] = board
+    under = np.empty((K, m, 3))
+    for k in range(K):
+        under[k] = u
+        u = u + alpha[k][:, None] * (colors[k] - u)
+    left = 1.0 - alpha
+    t = np.ones((K, m))
+    for k in range(K - 2, -1, -1):
+        t[k] = t[k + 1] * left[k + 1]
+    return u, t[..., None] * (colors[:, None, :] - under)
+
+
+def unmix(target, board, colors, *, iterations=15, top=0.97, chunk=65536):
+    """The coverages of the layers that make each pixel nearest the picture, and the error's curvature there.
+
+    Per pixel, ``alpha* = argmin |Lab(piece(alpha)) - Lab(target)|^2`` over ``alpha`` in
+    ``[0, top]^K``, by projected Gauss-Newton from ``alpha = 0`` (the per-channel baseline of
+    ``benchmarks/bench_colour.py`` plans each layer against its ``alpha*``).
+
+    Returns
+    -------
+    alpha : ndarray of float32, shape (K, n)
+    hess : ndarray of float32, shape (n, K, K)
+        ``J^T J`` at ``alpha*`` (``J`` the Lab change per unit of each layer's coverage).
+    residual : ndarray of float32, shape (n,)
+        The squared difference left at ``alpha*`` (what no coverage can make).
+    """
+    target = np.asarray(target, dtype=np.float64)
+    n, K = len(target), len(colors)
+    out_a = np.zeros((K, n), np.float32)
+    out_h = np.zeros((n, K, K), np.float32)
+    out_r = np.zeros(n, np.float32)
+    eye = np.eye(K) * 1e-6
+    for lo in range(0, n, chunk):
+        hi = min(lo + chunk, n)
+        tl = lab(target[lo:hi])
+        a = np.zeros((K, hi - lo))
+        for _ in range(iterations):
+            u, d = composite_jacobian(a, board, colors)
+            now, fp = lab_jacobian(u)
+            r = now - tl                                             # (m, 3)
+            j = ((d @ _QT) * fp) @ _PT                               # (K, m, 3)
+            jtj = np.einsum("kmi,lmi->mkl", j, j) + eye
+            jtr = np.einsum("kmi,mi->mk", j, r)
+            step = np.linalg.solve(jtj, -jtr[..., None])[..., 0]      # (m, K)
+            a = np.clip(a + step.T, 0.0, top)
+        u, d = composite_jacobian(a, board, colors)
+        now, fp = lab_jacobian(u)
+        r = now - tl
+        j = ((d @ _QT) * fp) @ _PT
+        out_a[:, lo:hi] = a
+        out_h[lo:hi] = np.einsum("kmi,lmi->mkl", j, j)
+        out_r[lo:hi] = (r * r).sum(axis=1)
+    return out_a, out_h, out_r
+
+
 class _PinFans:
     """The chords from each pin with (every ``sample``-th of) their pixels and coverage, built lazily."""
 
@@ -217,8 +285,9 @@ def joint_greedy(space, indptr, indices, model, weights, lines, *, run=25, start
         Line budget over all layers.
     run : int
         Chords a layer lays in a row once chosen (at most; fewer when they stop lowering the error).
-    start_pins : sequence of int, optional
-        First pin of each layer (default 0).
+    start_pins : sequence of int or None, optional
+        First pin of each layer (None, the default: one end of the chord that
+        lowers the error most at the start, :func:`first_pin`).
     min_loop : int
         A layer never goes back to its last ``min_loop`` pins.
     sample : int
@@ -231,8 +300,9 @@ def joint_greedy(space, indptr, indices, model, weights, lines, *, run=25, start
     """
     K = model.K
     fans = _PinFans(space, indptr, indices, weights, sample)
-    seqs = [[int(p)] for p in (start_pins if start_pins is not None else [0] * K)]
-    done = [False] * K
+    starts = list(start_pins) if start_pins is not None else [None] * K
+    seqs = [[int(p) if p is not None else first_pin(space, indptr, indices, model, weights, k)]
+            for k, p in enumerate(starts)]
 
     def best(k):
         others, chords, pix, starts, w = fans.get(seqs[k][-1])
@@ -255,12 +325,15 @@ def joint_greedy(space, indptr, indices, model, weights, lines, *, run=25, start
     while total < lines:
         if total % 200 < 1:
             report("colour", total, lines)
-        cands = [(best(k), k) for k in range(K) if not done[k]]
-        if not cands:
-            break
-        (gain, nxt, chord), k = min(cands)
-        for (g, _, _), j in cands:
-            done[j] = g >= 0
+        (gain, nxt, chord), k = min((best(k), k) for k in range(K))
+        if gain >= 0:
+            # a layer that has laid nothing yet may start elsewhere: where its best chord is now
+            idle = [j for j in range(K) if len(seqs[j]) == 1 and starts[j] is None]
+            for j in idle:
+                seqs[j][0] = first_pin(space, indptr, indices, model, weights, j)
+                starts[j] = seqs[j][0]          # once
+            if idle:
+                (gain, nxt, chord), k = min((best(j), j) for j in range(K))
         if gain >= 0:
             break
         lay(k, nxt, chord)
@@ -276,6 +349,21 @@ def joint_greedy(space, indptr, indices, model, weights, lines, *, run=25, start
             if total % 200 == 0:
                 report("colour", total, lines)
     return seqs
+
+
+def first_pin(space, indptr, indices, model, weights, k, *, chunk=4000):
+    """Where layer ``k`` should start: an end of the chord, of all, that lowers the error most now."""
+    best, where = np.inf, 0
+    for a in range(0, space.m, chunk):
+        b = min(a + chunk, space.m)
+        lo, hi = int(indptr[a]), int(indptr[b])
+        z = np.add.reduceat(model.Z[k].take(indices[lo:hi]), indptr[a:b] - lo)
+        w = weights[a:b].astype(np.float64)
+        gain = w * z.real + w * w * z.imag
+        i = int(np.argmin(gain))
+        if gain[i] < best:
+            best, where = float(gain[i]), a + i
+    return int(space.ends[where, 0])
 
 
 def orders(K, limit=24):

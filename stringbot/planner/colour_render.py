@@ -138,7 +138,7 @@ def _blurred_lab(linear_rgb, sigma):
     return rgb2lab(to_srgb(b))
 
 
-def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE):
+def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE, width=SCORE_WIDTH):
     """The colour score of ``layers`` against a picture (see the module notes).
 
     Parameters
@@ -150,6 +150,8 @@ def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE):
         The picture's crop read at :data:`SCORE_SIZE`, sRGB in [0, 1].
     frame : {"circle", "square"}
     background : str
+    width : float
+        Thread width as a fraction of the frame (a plan records its frame and thread).
 
     Returns
     -------
@@ -168,7 +170,7 @@ def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE):
     mask = frame_mask(SCORE_SIZE, frame)
     board = to_linear(hex_to_rgb(background))
     target = np.where(mask[..., None], to_linear(pic), board)
-    woven = woven_rgb(layers, pin_xy, background=background, size=SCORE_WOVEN, width=SCORE_WIDTH, linear=True)
+    woven = woven_rgb(layers, pin_xy, background=background, size=SCORE_WOVEN, width=width, linear=True)
     woven = resize(woven, (SCORE_SIZE, SCORE_SIZE, 3), anti_aliasing=True)
     woven = np.where(mask[..., None], woven, board)
     de = deltaE_ciede2000(_blurred_lab(target, BLUR_SIGMA), _blurred_lab(woven, BLUR_SIGMA))

@@ -28,7 +28,7 @@ import logging
 from ..errors import Interrupted
 from ..links.operator import tie_on
 
-__all__ = ["Threads", "layer_problems", "tied_layer"]
+__all__ = ["Threads", "layer_problems", "tied_layer", "status_line"]
 
 log = logging.getLogger(__name__)
 
@@ -103,6 +103,19 @@ class Threads:
         self.journal.append({"kind": "layer", "layer": layer, "color": self.colors[layer], "step": step,
                              "pin": pin})
         self.tied = layer
+
+
+def status_line(plan, state):
+    """``--status`` of a colour plan: the layer whose thread the journal last saw tied on."""
+    if plan.is_mono:
+        return None
+    k = tied_layer(state)
+    n = len(plan.colors)
+    if k is None:
+        return f"threads: {n} layers; none tied on yet (layer 1: {_name(plan.colors[0])})"
+    nxt = plan.layer_of(min(state.next_step, len(plan.sequence) - 1))
+    then = "" if nxt == k or state.finished else f"; next: a spool change to layer {nxt + 1} ({_name(plan.colors[nxt])})"
+    return f"threads: layer {k + 1} of {n} tied on ({_name(plan.colors[k])}){then}"
 
 
 def layer_problems(plan, wraps):

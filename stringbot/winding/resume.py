@@ -140,6 +140,9 @@ def status_lines(job):
         pin = job.steps[nxt].pin if nxt < len(job.steps) else None
         lines.append(f"steps done: {len(state.done)} of {total}; next: step {nxt + 1}"
                      + (f" (pin {pin})" if pin is not None else ""))
+    if not job.plan.is_mono:
+        from .layers import status_line
+        lines.append(status_line(job.plan, state))
     if state.resumes:
         lines.append(f"resumed {len(state.resumes)} time(s)")
     stop = state.last_stop
