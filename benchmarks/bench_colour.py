@@ -44,7 +44,7 @@ sys.path.insert(0, str(ROOT))
 SHARED = Path("/work/shared/images")
 SHARED_COLOUR = ["astronaut", "chelsea", "coffee", "logo"]
 EXTRA = ["rocket", "immunohistochemistry", "colorwheel"]     # skimage.data, read at run time
-MACHINES = ["grbl-ring", "grblhal-ring", "marlin-ring", "dynamixel-ring"]
+MACHINES = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring", "dynamixel-ring"]
 
 
 def stringbot(*args, check=True):
@@ -96,7 +96,7 @@ def per_channel(pic_path, plan):
                          reference=gray)
         layers.append((color, p.chord_list()))
     ref = read_picture(pic_path, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
-    width = plan.parameters["thread_mm"] / plan.parameters["diameter_mm"]
+    width = plan.thread_model().fraction
     return colour_score(layers, plan.pin_xy, ref.rgb, frame=plan.frame, background=plan.background, width=width)
 
 

@@ -1,10 +1,13 @@
 """Speed and memory of `stringbot plan`: whole commands in fresh processes.
 
-Prints wall time and peak memory (max RSS of the child) for
+Prints wall time, CPU time (user + system of the child: on a shared machine
+the wall time also counts the time other jobs had the cores), peak memory (max
+RSS of the child) and the load average for
 
-* fitness and greedy, 300 pins, 401 px, auto lines, camera.png, with a cold
-  chord cache (an empty cache folder) and a warm one;
-* fitness at 600 pins, 801 px (cold and warm).
+* the default method (residual, refinement included), fitness and greedy
+  (ThreadTone's 1001 px), 300 pins, 401 px, auto lines, camera.png, with a
+  cold chord cache (an empty cache folder) and a warm one;
+* the default method and fitness at 600 pins, 801 px (cold and warm).
 
 Usage: python benchmarks/bench_planner.py [IMAGE] [--repeat N]
 """
@@ -19,7 +22,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_IMAGE = ROOT.parent / "shared" / "images" / "camera.png"
+SHARED = next((d / "shared" for d in ROOT.parents if (d / "shared" / "images").is_dir()), ROOT.parent / "shared")
+DEFAULT_IMAGE = SHARED / "images" / "camera.png"
 
 
 def _command():
@@ -28,14 +32,19 @@ def _command():
 
 
 def run_once(args, cache):
-    """Run `stringbot plan ...` in a fresh process; return (wall seconds, stdout)."""
+    """Run `stringbot plan ...` in a fresh process; return (wall seconds, cpu seconds, stdout)."""
+    import resource
+
     env = dict(os.environ, STRINGBOT_CACHE=str(cache))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     p = subprocess.run(_command() + ["plan", *args], capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if p.returncode != 0:
         raise SystemExit(f"failed: {' '.join(args)}\n{p.stderr}")
-    return wall, p.stdout.strip()
+    return wall, cpu, p.stdout.strip()
 
 
 def peak_of(args, cache):
@@ -55,11 +64,12 @@ def main():
     ap.add_argument("--skip-600", action="store_true", help="skip the 600-pin, 801-px case")
     opts = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="stringbot-bench-"))
-    cases = [("fitness", ["--pins", "300", "--size", "401"]), ("greedy", ["--pins", "300", "--size", "401"])]
+    cases = [("residual", ["--pins", "300", "--size", "401"]), ("fitness", ["--pins", "300", "--size", "401"]),
+             ("greedy", ["--pins", "300", "--size", "1001"])]
     if not opts.skip_600:
-        cases.append(("fitness", ["--pins", "600", "--size", "801"]))
+        cases += [("residual", ["--pins", "600", "--size", "801"]), ("fitness", ["--pins", "600", "--size", "801"])]
     print(f"image {opts.image}; {os.cpu_count()} cores; python {sys.version.split()[0]}")
-    print(f"{'case':<28} {'cache':<6} {'wall s':>7} {'peak MB':>8}  summary")
+    print(f"{'case':<28} {'cache':<6} {'wall s':>7} {'cpu s':>6} {'peak MB':>8} {'load':>5}  summary")
     try:
         for method, extra in cases:
             name = f"{method} {extra[1]} pins {extra[3]} px"
@@ -67,18 +77,21 @@ def main():
             cache = work / f"cache-{method}-{extra[1]}-{extra[3]}"
             shutil.rmtree(cache, ignore_errors=True)
             cache.mkdir()
-            wall, out = run_once(args, cache)          # cold: empty cache folder
+            wall, cpu, out = run_once(args, cache)          # cold: empty cache folder
+            load = os.getloadavg()[0]
             shutil.rmtree(cache)
             cache.mkdir()
             peak = peak_of(args, cache)
-            print(f"{name:<28} {'cold':<6} {wall:7.2f} {peak:8.0f}  {out.split(' -> ')[0]}")
-            walls = []
+            print(f"{name:<28} {'cold':<6} {wall:7.2f} {cpu:6.2f} {peak:8.0f} {load:5.1f}  {out.split(' -> ')[0]}")
+            runs = []
             for _ in range(max(1, opts.repeat)):
-                walls.append(run_once(args, cache)[0])
+                runs.append(run_once(args, cache)[:2])
             peak = peak_of(args, cache)
-            walls.sort()
-            print(f"{name:<28} {'warm':<6} {walls[len(walls) // 2]:7.2f} {peak:8.0f}  "
-                  f"(best {walls[0]:.2f} s of {len(walls)})")
+            runs.sort()
+            wall, cpu = runs[len(runs) // 2]
+            print(f"{name:<28} {'warm':<6} {wall:7.2f} {cpu:6.2f} {peak:8.0f} {os.getloadavg()[0]:5.1f}  "
+                  f"(best {runs[0][0]:.2f} s of {len(runs)})")
+            sys.stdout.flush()
     finally:
         shutil.rmtree(work, ignore_errors=True)
 

@@ -8,12 +8,12 @@ score`` scores a plan: the paper's SSIM (section 4.1) with Wang et al.'s
 Gaussian window and scikit-image's default window, plain and blurred, and the
 as-woven error (lower is better).  stringbot's methods run at ThreadTone's
 line count on the same picture (300 pins, 401 px, the default crop):
-``fitness`` (the paper, style auto), ``greedy`` (ThreadTone as published) and
-``default`` (the default planner).  ``woven`` adds ``stringbot plan IMG
+``fitness`` (the paper, style auto), ``greedy`` (ThreadTone as published, at
+its own 1001 px and luminance gray) and ``residual`` (the default planner).  ``woven`` adds ``stringbot plan IMG
 --machine grbl-ring`` as a user gets it (auto lines): its as-woven error is
 compared with the better of the two peers.
 
-Usage: python benchmarks/quality_table.py [--methods default,fitness,greedy,woven] [--images DIR]
+Usage: python benchmarks/quality_table.py [--methods fitness,greedy,residual,woven] [--images DIR]
            [--sheet docs/contact-sheet.png] [--json]
 """
 
@@ -105,8 +105,10 @@ def run_methods(path, methods, k, pic, pins, size):
     plans = {}
     for m in methods:
         t = time.perf_counter()
-        if m == "woven":  # the default method with its own line count, as `stringbot plan IMG` makes it
-            p = plan_picture(path, pins=pins, size=size, picture=pic)
+        if m == "woven":  # `stringbot plan IMG --machine grbl-ring`: the default method, auto lines, 500 / 0.25 mm
+            p = plan_picture(path, pins=pins, size=size, picture=pic, diameter_mm=500.0, thread_mm=0.25)
+        elif m == "greedy":  # ThreadTone's own working size and gray (1001 px, luminance)
+            p = plan_picture(path, pins=pins, lines=k, method=m)
         else:
             p = plan_picture(path, pins=pins, size=size, lines=k, method=m, picture=pic)
         p.stats["bench_seconds"] = round(time.perf_counter() - t, 2)
@@ -118,8 +120,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", default=str(DEFAULT_IMAGES))
     ap.add_argument("--peers", default=str(DEFAULT_PEERS))
-    ap.add_argument("--methods", default="fitness,greedy",
-                    help="stringbot methods to run (comma-separated): fitness, greedy, default, woven")
+    ap.add_argument("--methods", default="fitness,greedy,residual,woven",
+                    help="stringbot methods to run (comma-separated): fitness, greedy, residual (the default "
+                         "method at ThreadTone's line count), woven (the default method as `stringbot plan IMG "
+                         "--machine grbl-ring` makes it: auto lines)")
     ap.add_argument("--only", default=None, help="comma-separated picture names (default: all)")
     ap.add_argument("--pins", type=int, default=300)
     ap.add_argument("--size", type=int, default=401)
@@ -158,9 +162,8 @@ def main():
                       f"  short {100 * r['short']:.0f}%  {r['seconds']} s")
             sys.stdout.flush()
         if opts.sheet:
-            tiles = [source_tile(path, plans["default"].crop if "default" in plans else peers["threadtone"].crop,
-                                 pic.weights, 260)]
-            tiles += [sheet_tile(plans[m], 260) for m in ("threadtone", "fitness", "default") if m in plans]
+            tiles = [source_tile(path, pic.crop, pic.weights, 260)]
+            tiles += [sheet_tile(plans[m], 260) for m in ("threadtone", "fitness", "woven") if m in plans]
             rows.append(tiles)
             names.append(f"{path.stem}: {k} lines")
     summary = {}
@@ -185,7 +188,7 @@ def main():
         for name, v in summary.items():
             print(f"{name:<22} {v}")
     if opts.sheet:
-        contact_sheet(rows, names, ["source", "ThreadTone", "paper fitness", "default"], opts.sheet)
+        contact_sheet(rows, names, ["source", "ThreadTone", "paper fitness", "default (auto lines)"], opts.sheet)
         if not opts.json:
             print(f"contact sheet -> {opts.sheet}")
 

@@ -1,60 +1,114 @@
-"""Faults the simulated machine can suffer, and when: ``kind@N`` with N the line count.
+"""Faults the simulated G-code machine can suffer, and when.
+
+Forms (a comma list of them)::
+
+    kind@N            as line N arrives (also kind@line=N)
+    kind@N+F          when the motion line N commands is the fraction F (0 < F < 1) of its
+                      length done (also kind@line=N+F); a line that moves nothing: as it starts
+    kind@t=T          at T seconds of the firmware's virtual clock (0 = when it was created)
+    kind@N..M         every line from N to M (kind@N.. and kind@N+: from N on), for the
+                      line kinds only
 
 N counts the lines the firmware has received since it was created (1 = the
 first line; GRBL counts every line end, empty lines and ``$`` commands too,
 Marlin every non-empty line; the count survives resets and power cycles, so
 ``reset@5,reset@9`` fires twice).  Dynamixel machines have their own faults
 (see ``docs/dynamixel.md``).
-Each fault fires once, when line N has arrived complete:
+
+Machine kinds (any form but a range): they hit the firmware or the port,
+moving or not.
+
+``reset``
+    a soft reset (as 0x18, or a watchdog): motion stops dead, the queue and
+    the line being received are lost, the position is kept.  GRBL prints
+    ``ALARM:3`` if it was moving and pauses 0.5 s, answers ``ok`` to a line
+    that was waiting in its main loop, then prints its banner.  Marlin has no
+    such reset: it restarts as with ``reboot``.
+``reboot``
+    the board restarts (a brown-out, an Arduino's reset line): everything in
+    progress is lost, nothing is answered for :data:`BOOT_SECONDS`, then the
+    banner; the firmware's position is wiped (0 wherever the axes stand).
+``power``
+    power is lost: motion stops where it is, the port drops (reads and writes
+    fail), and after :data:`POWER_OFF_SECONDS` the firmware starts again with
+    its position lost; the banner waits for the host.
+``disconnect``
+    the USB cable is pulled: what is in transit is lost and the port drops
+    for :data:`DISCONNECT_SECONDS`; the firmware keeps running (queued motion
+    completes) and is still there when the port comes back.
+
+Line kinds (``N``, ``line=N`` or a range): they hit line N.
 
 ``garble``
     bytes of line N are corrupted in transit (its middle byte becomes 0x7F,
     DEL): the firmware parses what arrived -- GRBL rejects it with an
-    ``error:``, Marlin with a checksum mismatch and ``Resend:`` when the line
-    carries one.
+    ``error:``, Marlin with a checksum mismatch and ``Resend:``.
 ``error``
     line N is rejected, not executed: GRBL answers ``error:20``, Marlin
     ``Error:...`` with ``Resend:``.
 ``drop-ok``
     line N is executed but its response (``ok``) is lost on the way back.
-``reset``
-    the firmware resets (a brown-out, a watchdog) as line N arrives: line N and
-    everything queued are lost, motion stops where it is, GRBL prints
-    ``ALARM:3`` if it was moving, then the banner; the firmware's position is
-    wiped (0 wherever the axes physically are).
-``power``
-    power is lost as line N arrives: motion stops where it is, the port drops
-    (reads and writes fail), and after :data:`POWER_OFF_SECONDS` the firmware
-    starts again with its position lost; the banner waits for the host.
-``disconnect``
-    the USB cable is pulled as line N arrives: line N is lost and the port
-    drops for :data:`DISCONNECT_SECONDS`; the firmware keeps running (queued
-    motion completes) and is still there when the port comes back.
+``ignore``
+    line N is answered ``ok`` but not executed (a firmware that acknowledges
+    without acting): no motion, no change of state; the reported position
+    stays where it was.
 """
 
+import math
 import re
 from dataclasses import dataclass
 
-__all__ = ["KINDS", "Fault", "FaultPlan", "parse_faults", "FAULTS_FORM",
-           "POWER_OFF_SECONDS", "DISCONNECT_SECONDS"]
+__all__ = ["KINDS", "MACHINE_KINDS", "LINE_KINDS", "Fault", "FaultPlan", "parse_faults", "FAULTS_FORM",
+           "POWER_OFF_SECONDS", "DISCONNECT_SECONDS", "BOOT_SECONDS"]
 
-KINDS = ("disconnect", "reset", "power", "garble", "drop-ok", "error")
-FAULTS_FORM = "a comma list of kind@N, kind one of " + ", ".join(KINDS) + " and N >= 1 (e.g. reset@12,garble@30)"
+MACHINE_KINDS = ("disconnect", "reset", "reboot", "power")
+LINE_KINDS = ("garble", "drop-ok", "error", "ignore")
+KINDS = MACHINE_KINDS + LINE_KINDS
+FAULTS_FORM = ("a comma list of kind@N, kind@N+F (0<F<1), kind@t=SECONDS or, for "
+               + "/".join(LINE_KINDS) + ", kind@N..M / kind@N.. ; kind one of " + ", ".join(KINDS)
+               + " and N >= 1 (e.g. reset@12,reset@t=30.5,power@40+0.5,ignore@60..)")
 #: Virtual seconds the port stays down after ``power`` (the firmware restarts when it comes back).
 POWER_OFF_SECONDS = 1.0
 #: Virtual seconds the port stays down after ``disconnect``.
 DISCONNECT_SECONDS = 0.5
+#: Virtual seconds a rebooting board answers nothing (an Arduino's bootloader waits about 1 s).
+BOOT_SECONDS = 1.0
 
-_ITEM = re.compile(r"^([a-z-]+)@(\d+)$")
+_NUM = r"(\d+(?:\.\d*)?|\.\d+)"
+_ITEM = re.compile(rf"^([a-z-]+)@(?:(?:line=)?(\d+)(?:\+{_NUM}|(\+|\.\.(\d+)?))?|t={_NUM})$")
 
 
 @dataclass(frozen=True)
 class Fault:
+    """One fault: ``kind`` at ``line`` (``line``..``last`` for a range, ``last`` math.inf when
+    open), at the ``fraction`` of line ``line``'s motion, or at virtual ``time``."""
+
     kind: str
-    line: int
+    line: int | None = None
+    fraction: float | None = None
+    time: float | None = None
+    last: float | None = None
+
+    @property
+    def at_arrival(self):
+        """Fires as a line arrives (not at a time or inside a motion)."""
+        return self.time is None and self.fraction is None
+
+    def covers(self, n):
+        return self.at_arrival and self.line <= n <= (self.line if self.last is None else self.last)
+
+    def when(self):
+        """The part after the ``@``."""
+        if self.time is not None:
+            return f"t={self.time:g}"
+        if self.fraction is not None:
+            return f"line={self.line}+{self.fraction:g}"
+        if self.last is None:
+            return str(self.line)
+        return f"{self.line}.." + ("" if self.last == math.inf else str(int(self.last)))
 
     def __str__(self):
-        return f"{self.kind}@{self.line}"
+        return f"{self.kind}@{self.when()}"
 
 
 def parse_faults(text):
@@ -71,30 +125,82 @@ def parse_faults(text):
     for item in str(text).split(","):
         item = item.strip()
         m = _ITEM.match(item)
-        if not m or m.group(1) not in KINDS or int(m.group(2)) < 1:
+        if not m or m.group(1) not in KINDS:
             raise ValueError(f"bad fault {item!r}; expected {FAULTS_FORM}")
-        faults.append(Fault(m.group(1), int(m.group(2))))
+        kind, line, frac, rng, last, t = m.groups()
+        if t is not None:
+            fault = Fault(kind, time=float(t))
+        elif frac is not None:
+            fault = Fault(kind, int(line), fraction=float(frac))
+            if not 0.0 < fault.fraction < 1.0:
+                raise ValueError(f"bad fault {item!r}: the fraction of the move must be > 0 and < 1; "
+                                 f"expected {FAULTS_FORM}")
+        elif rng is not None:
+            end = math.inf if last is None else int(last)
+            fault = Fault(kind, int(line), last=end)
+            if end < fault.line:
+                raise ValueError(f"bad fault {item!r}: the range ends before it starts; expected {FAULTS_FORM}")
+        else:
+            fault = Fault(kind, int(line))
+        if fault.line is not None and fault.line < 1:
+            raise ValueError(f"bad fault {item!r}; expected {FAULTS_FORM}")
+        if kind in LINE_KINDS and not fault.at_arrival:
+            raise ValueError(f"bad fault {item!r}: {kind} hits a line as it arrives, so it takes "
+                             f"{kind}@N or {kind}@N..M, not a time or a fraction of a move")
+        if kind in MACHINE_KINDS and fault.last is not None:
+            raise ValueError(f"bad fault {item!r}: {kind} fires once, so it takes no range; "
+                             f"expected {kind}@N, {kind}@N+F or {kind}@t=SECONDS")
+        faults.append(fault)
     return faults
 
 
 class FaultPlan:
-    """The faults still to fire; the firmware asks it about every line it receives."""
+    """The faults still to fire; the firmware asks it about every line it receives, about the
+    motion of the line it starts, and about the time."""
 
     def __init__(self, faults=()):
         if isinstance(faults, str):
             faults = parse_faults(faults)
-        self.pending = sorted(faults, key=lambda f: f.line)
+        self.pending = sorted(faults, key=lambda f: (f.line or 0, f.time or 0.0))
         self.fired = []
         self.lines = 0
 
     def next_line(self):
         """Count one received line; returns the set of fault kinds that fire on it."""
         self.lines += 1
-        kinds = {f.kind for f in self.pending if f.line == self.lines}
-        if kinds:
-            self.fired.extend(f for f in self.pending if f.line == self.lines)
-            self.pending = [f for f in self.pending if f.line != self.lines]
-        return kinds
+        n = self.lines
+        hits = [f for f in self.pending if f.covers(n)]
+        for f in hits:
+            if f.line == n:
+                self.fired.append(f)
+        self.pending = [f for f in self.pending
+                        if not (f in hits and (f.last is None or f.last <= n))]
+        return {f.kind for f in hits}
+
+    def fractions(self, line):
+        """Take the faults that fire inside the motion of ``line`` (``kind@line+F``)."""
+        taken = [f for f in self.pending if f.fraction is not None and f.line == line]
+        if taken:
+            self.pending = [f for f in self.pending if f not in taken]
+        return taken
+
+    def mark_fired(self, fault):
+        """A fault taken by :meth:`fractions` has fired."""
+        self.fired.append(fault)
+
+    def next_time(self):
+        """Virtual time of the next timed fault, or None."""
+        times = [f.time for f in self.pending if f.time is not None]
+        return min(times) if times else None
+
+    def due(self, now, eps=1e-9):
+        """Take the timed faults due at ``now``, in time order."""
+        due = sorted((f for f in self.pending if f.time is not None and f.time <= now + eps),
+                     key=lambda f: f.time)
+        if due:
+            self.pending = [f for f in self.pending if f not in due]
+            self.fired.extend(due)
+        return due
 
     def __str__(self):
         return ",".join(str(f) for f in self.pending)

@@ -21,7 +21,7 @@ __all__ = [
 ]
 
 #: Axis letters each dialect can drive.
-AXES = {"grbl": "XYZ", "grblhal": "XYZABC", "marlin": "XYZABC"}
+AXES = {"grbl": "XYZ", "grblhal": "XYZABC", "fluidnc": "XYZABC", "marlin": "XYZABC"}
 
 
 class MachineFileError(ValueError):
@@ -79,8 +79,8 @@ SCHEMA = {
         "travel_deg": _Key(float, 36000.0, lo=360.0, hi=1e7,
                            doc="the ring axis stays within pin0_angle_deg +- travel_deg"),
         "steps_per_deg": _Key(float, None, lo=0.0, hi=1e6, lo_open=True,
-                              doc="the firmware's steps per degree (GRBL $100 on X); documentation, "
-                                  "shown as the step resolution"),
+                              doc="the firmware's steps per degree of the ring axis (GRBL $100 on X, "
+                                  "grblHAL $103 on A, Marlin M92 A); `machines check` compares it"),
         "feed_deg_per_min": _Key(float, 36000.0, lo=0.0, hi=1e7, lo_open=True),
         "accel_deg_per_s2": _Key(float, 720.0, lo=0.0, hi=1e7, lo_open=True),
     },
@@ -91,11 +91,18 @@ SCHEMA = {
         "accel_mm_per_s2": _Key(float, 500.0, lo=0.0, hi=1e6, lo_open=True),
         "steps_per_mm": _Key(float, None, lo=0.0, hi=1e6, lo_open=True,
                              doc="the firmware's steps per mm of the head axis (GRBL $101 on Y); "
-                                 "the host allows one step of it when it compares positions"),
+                                 "the host allows one step of it when it compares positions; `machines check` compares it"),
+        "travel_min_mm": _Key(float, None, lo=-1000.0, hi=1000.0,
+                              doc="the head axis' mechanical end on the low side (the simulator records "
+                                  "driving past it as a crash); default: a quarter of the IN-OUT "
+                                  "distance beyond the lower of in_mm, out_mm, home_head_mm"),
+        "travel_max_mm": _Key(float, None, lo=-1000.0, hi=1000.0,
+                              doc="... and on the high side; default: a quarter of the IN-OUT distance "
+                                  "beyond the higher"),
     },
     "controller": {
         "kind": _Key(str, choices=("gcode", "dynamixel")),
-        "dialect": _Key(str, None, choices=("grbl", "grblhal", "marlin")),
+        "dialect": _Key(str, None, choices=("grbl", "grblhal", "fluidnc", "marlin")),
         "ring_axis": _Key(str, None),
         "head_axis": _Key(str, None),
         "baud": _Key(int, 115200, lo=1200, hi=4_000_000),
@@ -104,6 +111,8 @@ SCHEMA = {
                               doc="ring axis value declared at the home switch after homing"),
         "home_head_mm": _Key(float, None, lo=-1000.0, hi=1000.0,
                              doc="head axis value declared at the home switch; default head.in_mm"),
+        "reset_on_open": _Key(bool, False, doc="the board restarts whenever its port is opened (an "
+                                               "Arduino Uno's auto-reset on DTR): position lost"),
         # kind = "dynamixel" (Protocol 2.0, X series); ignored for G-code machines
         "protocol": _Key(float, 2.0, choices=(2.0,)),
         "ring_id": _Key(int, 1, lo=0, hi=252),
@@ -140,7 +149,7 @@ DYNAMIXEL_MAX_TURNS = 256
 DYNAMIXEL_ONLY = frozenset(f"controller.{k}" for k in (
     "protocol", "ring_id", "head_id", "model_number", "ticks_per_turn", "gear_ratio",
     "profile_velocity", "profile_acceleration", "head_in_ticks", "head_out_ticks"))
-GCODE_ONLY = frozenset(f"controller.{k}" for k in ("dialect", "ring_axis", "head_axis"))
+GCODE_ONLY = frozenset(f"controller.{k}" for k in ("dialect", "ring_axis", "head_axis", "reset_on_open"))
 
 
 @dataclass(frozen=True)
@@ -187,6 +196,18 @@ class Machine:
     def circle_mm(self):
         """Head axis position at which the eyelet crosses the pin circle (midway IN to OUT)."""
         return (self.values["head.in_mm"] + self.values["head.out_mm"]) / 2.0
+
+    @property
+    def head_travel_mm(self):
+        """(low, high) mechanical ends of the head axis: ``head.travel_min_mm`` / ``travel_max_mm``,
+        by default a quarter of the IN-OUT distance beyond IN, OUT and the home switch."""
+        v = self.values
+        ends = [v["head.in_mm"], v["head.out_mm"]]
+        if v.get("controller.home_head_mm") is not None:
+            ends.append(v["controller.home_head_mm"])
+        margin = abs(v["head.out_mm"] - v["head.in_mm"]) / 4.0
+        lo, hi = v.get("head.travel_min_mm"), v.get("head.travel_max_mm")
+        return (min(ends) - margin if lo is None else lo, max(ends) + margin if hi is None else hi)
 
     def pin_angle(self, pin):
         """Ring axis position (degrees) at which ``pin`` faces the head station."""
@@ -339,12 +360,27 @@ def _check_consistency(m, source):
     if v["head.in_mm"] == v["head.out_mm"]:
         raise MachineFileError(f"{source}: head.in_mm equals head.out_mm ({v['head.in_mm']}); "
                                "expected two different positions (IN inside the pin circle, OUT outside)")
+    stroke = abs(v["head.out_mm"] - v["head.in_mm"])
+    clear = v["ring.pin_diameter_mm"] + v["thread.diameter_mm"]
+    if stroke < clear:
+        raise MachineFileError(
+            f"{source}: the head's stroke |head.out_mm - head.in_mm| = {stroke:g} mm does not clear the pins: "
+            f"expected at least ring.pin_diameter_mm + thread.diameter_mm = {clear:g} mm, so that the eyelet "
+            "gets round a pin (IN inside the pin circle, OUT outside it)")
     home_head = v["controller.home_head_mm"]
     if home_head is not None and (home_head - m.circle_mm) * (v["head.in_mm"] - m.circle_mm) <= 0:
         raise MachineFileError(
             f"{source}: controller.home_head_mm is {home_head}, outside the pin circle (the head crosses it "
             f"at {m.circle_mm:g} mm); expected a position on the IN side, like head.in_mm = {v['head.in_mm']:g}, "
             "so that the head never sits among the pins while the ring turns")
+    lo, hi = m.head_travel_mm
+    inside = [v["head.in_mm"], v["head.out_mm"]] + ([home_head] if home_head is not None else [])
+    if not lo < min(inside) or not max(inside) < hi:
+        raise MachineFileError(
+            f"{source}: the head's travel {lo:g} .. {hi:g} mm (head.travel_min_mm .. travel_max_mm) does not "
+            f"contain head.in_mm {v['head.in_mm']:g}, head.out_mm {v['head.out_mm']:g}"
+            + (f" and controller.home_head_mm {home_head:g}" if len(inside) > 2 else "")
+            + "; expected travel_min_mm below all of them and travel_max_mm above")
     if m.free_gap_mm <= 0:
         raise MachineFileError(
             f"{source}: the pins do not fit: pitch {m.pitch_mm:.3f} mm <= pin {v['ring.pin_diameter_mm']} mm "
@@ -353,7 +389,7 @@ def _check_consistency(m, source):
         dialect = v["controller.dialect"]
         if dialect is None:
             raise MachineFileError(f"{source}: controller.dialect is missing; expected one of "
-                                   f"'grbl', 'grblhal', 'marlin' for kind = 'gcode'")
+                                   f"'grbl', 'grblhal', 'fluidnc', 'marlin' for kind = 'gcode'")
         for key in ("controller.ring_axis", "controller.head_axis"):
             axis = v[key]
             if axis is None or len(axis) != 1 or axis not in AXES[dialect]:

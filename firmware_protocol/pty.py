@@ -119,8 +119,10 @@ class PtyServer:
         self._pending.clear()
 
     def close(self):
-        """Close the pty and remove the symlink (if it is still ours)."""
+        """Close the pty, remove the symlink (if it is still ours) and let the emulator write its
+        records."""
         self._close_pty()
+        self.emulator.close()
         try:
             if os.path.islink(self.path) and os.readlink(self.path) == self.slave_name:
                 os.unlink(self.path)
@@ -142,12 +144,15 @@ class PtyServer:
             return
         if not emu.port_up:
             log.info("port dropped: closing %s", self.slave_name)
+            emu.idle()
             self._close_pty()
             self._down_since = time.monotonic()
             return
         self._flush_out()
         fast_busy = not self.realtime and emu.busy and not self._pending
         wait = 0.0 if fast_busy else timeout
+        if wait:
+            emu.idle()              # about to wait for the host: the record catches up if at rest
         if self.realtime:
             nxt = emu.next_event_in()
             if nxt is not None:
@@ -160,6 +165,8 @@ class PtyServer:
                 time.sleep(0 if fast_busy else min(timeout, 0.01))
         elif self._client_since is None:
             self._client_since = time.monotonic()
+            if emu.port_opened():           # an Uno resets on DTR: what it said before is gone
+                self._pending.clear()
         if flags & select.POLLIN and not flags & select.POLLHUP:
             try:
                 data = os.read(self.master, 4096)

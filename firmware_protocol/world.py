@@ -48,12 +48,32 @@ and back through the same gap wraps nothing, whatever the ring did in between
 while out wraps every pin.  The segment is a straight line in (ring, head), so
 a diagonal move crosses the circle at the one instant the head passes
 ``circle_mm``, and the ring angle at that instant is what is checked.
+
+Head travel
+-----------
+The head axis has mechanical ends (``machine.head_travel_mm``).  A segment
+that drives the head past one stops the head at that end (the motor stalls,
+the firmware does not know) while the ring goes on; it is recorded once as a
+*crash* until the head moves away from the end again.
+
+The record
+----------
+:meth:`World.record` is what an operator looking at the machine would see:
+ring angle, head position and side, the number of motion segments, wraps,
+collisions, crashes and the simulator's notable events (resets, power, the
+port).  The file (``record_path``) is rewritten atomically at once after
+every wrap, collision, crash and event; other changes (the axes moving) are
+written at most every :attr:`World.save_interval` seconds of wall time, and
+whatever is still unwritten is written by :meth:`World.flush`, which the
+transports call whenever the machine waits for its host, when the port drops
+or closes and when the simulator exits.
 """
 
 import json
 import math
 import os
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -80,20 +100,37 @@ class Wrap:
 
 
 def _write_atomic(path, text):
-    """Write ``text`` to ``path``: temp file in the same folder, fsync, ``os.replace``."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    """Write ``text`` to ``path``: temp file in the same folder, fsync, ``os.replace``.
+
+    A symlink is written through (its target is replaced, the link stays); the file
+    gets the mode any other output gets (kept if it exists, else 0666 less the umask);
+    an ``OSError`` names the path.
+    """
+    path = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
     try:
+        mode = os.stat(path).st_mode & 0o7777
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
+    try:
+        os.fchmod(fd, mode)
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
+        if isinstance(exc, OSError) and exc.filename is None:
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
         raise
 
 
@@ -105,8 +142,11 @@ class World:
     machine : firmware_protocol.machine.Machine
         Geometry: pins, pitch, gap tolerance, head IN/OUT positions.
     record_path : str or path-like, optional
-        If given, the JSON record (:meth:`record`) is rewritten atomically there
-        at the start and after every wrap and collision.
+        If given, the JSON record (:meth:`record`) is rewritten atomically there:
+        at the start, after every wrap, collision, crash and event, and for
+        motion alone at most every ``save_interval`` seconds (see :meth:`flush`).
+    save_interval : float
+        Wall-clock seconds between two rewrites for motion alone.
 
     Notes
     -----
@@ -114,8 +154,9 @@ class World:
     ``head.in_mm`` and no wraps.
     """
 
-    def __init__(self, machine, *, record_path=None):
+    def __init__(self, machine, *, record_path=None, save_interval=0.1):
         self.machine = machine
+        self.save_interval = save_interval
         self.record_path = None if record_path is None else Path(record_path)
         self._pins = machine.pins
         self._pitch = machine.pitch_deg
@@ -128,6 +169,12 @@ class World:
         self.wraps = []
         self._wrap_json = []        # wraps already serialised for the record file
         self.collisions = []
+        self.crashes = []
+        self.events = []
+        self._travel = machine.head_travel_mm
+        self._stalled = 0           # -1 / +1: the head is held at its low / high end by a crash
+        self._dirty = False
+        self._saved_at = 0.0
         self.moves = 0
         self.ring_travel_deg = 0.0
         self._side = -1             # last strict side: -1 IN, +1 OUT
@@ -146,6 +193,11 @@ class World:
     def head_out(self):
         """True when the eyelet is strictly outside the pin circle."""
         return self._side_of(self.head_mm) > 0
+
+    @property
+    def head_side(self):
+        """``"in"``, ``"out"`` or ``"on"`` (the eyelet exactly on the pin circle)."""
+        return {-1: "in", 0: "on", 1: "out"}[self._side_of(self.head_mm)]
 
     def pin_units(self, ring_deg):
         """Ring axis degrees -> pin units (pin ``k`` faces the station at ``k``)."""
@@ -167,13 +219,39 @@ class World:
             "pins": self._pins,
             "wraps": [w.as_dict() for w in self.wraps],
             "collisions": [dict(c) for c in self.collisions],
+            "crashes": [dict(c) for c in self.crashes],
+            "events": [dict(e) for e in self.events],
             "moves": self.moves,
             "ring_deg": self.ring_deg,
             "head_mm": self.head_mm,
+            "head_side": self.head_side,
             "head_out": self.head_out,
             "ring_travel_deg": self.ring_travel_deg,
             **spools,
         }
+
+    # ---- the record file ----------------------------------------------------------------
+    def note(self, event, **detail):
+        """A notable event (a reset, power lost, the port dropped): kept in the record, written now."""
+        self.events.append({"event": event, "move": self.moves, **detail})
+        self._save()
+
+    def flush(self):
+        """Write the record if something changed since it was last written."""
+        if self._dirty:
+            self._save()
+
+    def close(self):
+        """The simulator is done with the world: write what is still unwritten."""
+        self.flush()
+
+    def _changed(self, now_worth_saving):
+        if self.record_path is None:
+            return
+        if now_worth_saving or time.monotonic() - self._saved_at >= self.save_interval:
+            self._save()
+        else:
+            self._dirty = True
 
     # ---- motion -------------------------------------------------------------------------
     def move(self, ring_deg, head_mm):
@@ -191,10 +269,34 @@ class World:
         list of Wrap
             The wraps this segment completed (also appended to :attr:`wraps`).
         """
-        r0, h0 = self.ring_deg, self.head_mm
         r1, h1 = float(ring_deg), float(head_mm)
         if not (math.isfinite(r1) and math.isfinite(h1)):
             raise ValueError(f"world.move({ring_deg!r}, {head_mm!r}): expected finite numbers")
+        lo, hi = self._travel
+        end = lo if h1 < lo else hi if h1 > hi else None
+        if end is None:
+            self._stalled = 0
+            return self._segment(r1, h1)
+        # the head runs into its end: up to there in a straight line, then the ring alone
+        r0, h0 = self.ring_deg, self.head_mm
+        side = -1 if end == lo else 1
+        crash = self._stalled != side
+        new = []
+        if h0 != end:
+            t = (end - h0) / (h1 - h0)
+            new = self._segment(r0 + t * (r1 - r0), end, quiet=True)
+        if crash:
+            self._stalled = side
+            self.crashes.append({"ring_deg": self.ring_deg, "head_mm": end, "driven_to_mm": h1,
+                                 "move": self.moves, "reason": f"head driven to {h1:.3f} mm, past its "
+                                 f"{'low' if side < 0 else 'high'} end at {end:g} mm: it stopped there"})
+        if r1 != self.ring_deg:
+            new += self._segment(r1, end, quiet=True)
+        self._changed(True)
+        return new
+
+    def _segment(self, r1, h1, quiet=False):
+        r0, h0 = self.ring_deg, self.head_mm
         self.moves += 1
         self.ring_travel_deg += abs(r1 - r0)
         s0, s1 = self._side_of(h0), self._side_of(h1)
@@ -216,8 +318,8 @@ class World:
             # leaves the circle at the start of this segment (the contact was checked on arrival)
             new = self._leave_circle(s1, r0)
         self.ring_deg, self.head_mm = r1, h1
-        if (new or changed) and self.record_path is not None:
-            self._save()
+        if not quiet:
+            self._changed(bool(new or changed))
         return new
 
     def _leave_circle(self, side, ring_at):
@@ -268,6 +370,10 @@ class World:
         return True
 
     def _save(self):
+        if self.record_path is None:
+            return
+        self._dirty = False
+        self._saved_at = time.monotonic()
         # The wraps list only grows: serialise each wrap once and join, so that rewriting the
         # record after every wrap stays linear in its size (a full plan is thousands of wraps).
         frags = self._wrap_json

@@ -50,7 +50,8 @@ def one_error_line(code, err, words):
 
 def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
     out = tmp_path / "p.json"
-    code, stdout, err = run("plan", picture, "-o", out, *SMALL, "--lines", "80", "--start-pin", "5")
+    code, stdout, err = run("plan", picture, "-o", out, *SMALL, "--lines", "80", "--start-pin", "5", "--method",
+                            "fitness")
     assert code == 0, err
     plan = read_plan(out)
     assert plan.pins == 60 and plan.sequence[0] == 5 and len(plan.sequence) == 81
@@ -71,7 +72,8 @@ def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
 @pytest.mark.parametrize("size", ["101", "251"])
 def test_auto_records_the_scores_that_score_gives(tmp_path, picture, size):
     out = tmp_path / "p.json"
-    code, _, err = run("plan", picture, "-o", out, "--pins", "60", "--size", size, "--lines", "120")
+    code, _, err = run("plan", picture, "-o", out, "--pins", "60", "--size", size, "--lines", "120", "--method",
+                       "fitness")
     assert code == 0, err
     plan = read_plan(out)
     kept = plan.stats["styles"][plan.parameters["style"]]
@@ -96,7 +98,7 @@ def test_greedy_square_crop_and_preview_path(tmp_path, picture):
 
 def test_disconnected_plan_renders_and_scores(tmp_path, picture):
     out = tmp_path / "d.json"
-    code, _, err = run("plan", picture, "-o", out, "--disconnected", "--lines", "60", *SMALL)
+    code, _, err = run("plan", picture, "-o", out, "--disconnected", "--lines", "60", *SMALL, "--method", "fitness")
     assert code == 0, err
     doc = json.loads(out.read_text())
     assert doc["connected"] is False and len(doc["chords"]) == 60 and doc["sequence"] == []
@@ -158,7 +160,7 @@ def test_machine_summary_has_the_machine_time_estimate(tmp_path, picture):
     assert code == 0 and len(stdout.strip().splitlines()) == 1 and "winding" not in stdout, stdout
     # a chord set cannot be wound: said so, no estimate
     code, stdout, err = run("plan", picture, "-o", out, "--machine", "grbl-ring", "--size", "151", "--lines", "40",
-                            "--disconnected")
+                            "--disconnected", "--method", "fitness")
     assert code == 0, err
     assert "cannot be wound" in stdout and "of winding" not in stdout, stdout
 
@@ -210,6 +212,11 @@ def test_bad_pictures(tmp_path, which):
     (["--style", "crisp"], "--style"),
     (["--method", "greedy", "--beta", "2"], "knobs of --method fitness"),
     (["--method", "greedy", "--style", "auto"], "knobs of --method fitness"),
+    (["--thread-mm", "0"], "--thread-mm 0; expected millimetres"),
+    (["--diameter-mm", "-1"], "--diameter-mm -1; expected millimetres"),
+    (["--diameter-mm", "nan"], "--diameter-mm nan"),
+    (["--diameter-mm", "10", "--thread-mm", "1"], "more than a 20th"),
+    (["--machine", "grbl-ring", "--thread-mm", "0.4"], "differs from machine 'grbl-ring'"),
 ])
 def test_bad_options(tmp_path, picture, args, words):
     out = tmp_path / "p.json"
@@ -305,3 +312,49 @@ def test_score_finds_a_relative_source_and_warns_when_it_changed(tmp_path, pictu
     code, out, err = run("score", work / "p.json", "--json", cwd=tmp_path)
     assert code == 0 and "sha256 differs" in err, (out, err)
     assert json.loads(out)["ssim"] != first["ssim"]
+
+
+def test_plan_records_the_thread_and_renders_as_woven_by_default(tmp_path, picture):
+    out = tmp_path / "p.json"
+    code, _, err = run("plan", picture, "-o", out, *SMALL, "--lines", "60", "--diameter-mm", "300",
+                       "--thread-mm", "0.6")
+    assert code == 0, err
+    doc = json.loads(out.read_text())
+    assert doc["version"] == 1 and doc["diameter_mm"] == 300.0 and doc["thread_mm"] == 0.6
+    code, stdout, err = run("render", out, "-o", tmp_path / "w.png", "--size", "301")
+    assert code == 0 and "as woven (0.6 mm thread on 300 mm)" in stdout, err
+    code, stdout, err = run("render", out, "-o", tmp_path / "b.png", "--size", "301", "--binary")
+    assert code == 0 and "1-pixel lines" in stdout, err
+    woven = np.asarray(Image.open(tmp_path / "w.png"), dtype=float)
+    binary = np.asarray(Image.open(tmp_path / "b.png"), dtype=float)
+    # the binary drawing is only black and white; as woven, a 0.6 mm thread on 300 mm is 0.6 px
+    # at 301 px: gray, anti-aliased, and lighter overall than 1-pixel lines
+    assert set(np.unique(binary)) <= {0.0, 255.0}
+    assert len(np.unique(woven)) > 20 and woven.mean() > binary.mean()
+    # the preview is the woven drawing at 1001 px
+    preview = np.asarray(Image.open(tmp_path / "p.png"))
+    assert preview.shape == (1001, 1001) and len(np.unique(preview)) > 20
+
+
+def test_old_plans_without_thread_fields_still_read(tmp_path, picture):
+    out = tmp_path / "p.json"
+    assert run("plan", picture, "-o", out, *SMALL, "--lines", "30")[0] == 0
+    doc = json.loads(out.read_text())
+    del doc["diameter_mm"], doc["thread_mm"]
+    out.write_text(json.dumps(doc))
+    plan = read_plan(out)
+    assert (plan.diameter_mm, plan.thread_mm) == (500.0, 0.25)
+    code, _, err = run("render", out, "-o", tmp_path / "r.png", "--size", "101")
+    assert code == 0, err
+    doc["thread_mm"] = 0
+    out.write_text(json.dumps(doc))
+    code, _, err = run("render", out, "-o", tmp_path / "r.png")
+    one_error_line(code, err, "field 'thread_mm' is 0")
+
+
+def test_machine_gives_the_ring_and_the_thread(tmp_path, picture):
+    out = tmp_path / "p.json"
+    code, _, err = run("plan", picture, "-o", out, "--machine", "grbl-ring", "--size", "151", "--lines", "40")
+    assert code == 0, err
+    plan = read_plan(out)
+    assert (plan.pins, plan.diameter_mm, plan.thread_mm) == (300, 500.0, 0.25)

@@ -14,7 +14,7 @@ from stringbot.winding.resume import resume_plan
 
 from test_colour_plan import colour_plan
 
-MACHINES = ["grbl-ring", "grblhal-ring", "marlin-ring", "dynamixel-ring"]
+MACHINES = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring", "dynamixel-ring"]
 
 
 def check_layers(record, plan):

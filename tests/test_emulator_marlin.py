@@ -91,7 +91,7 @@ def test_m115_and_planner_of_15_blocks_withholds_ok():
     emu = emulator()
     emu.receive(b"M115\n")
     out = emu.transmit().decode()
-    assert out.startswith("FIRMWARE_NAME:Marlin 2.1.2.1 ") and "Cap:EEPROM:0\n" in out
+    assert out.startswith("FIRMWARE_NAME:Marlin 2.1.2.1 ") and "Cap:EEPROM:1\n" in out   # M500 stores settings
     assert out.endswith("ok\n")
     for i in range(4):
         emu.receive(b"G0 A%d F7200\n" % (10 * (i + 1)))

@@ -6,7 +6,8 @@ from firmware_protocol import marlin as mc
 from firmware_protocol.emulators.factory import build_emulator
 from firmware_protocol.emulators.grbl import GrblState
 from firmware_protocol.emulators.testing import run_exchange
-from firmware_protocol.faults import DISCONNECT_SECONDS, POWER_OFF_SECONDS, Fault, FaultPlan, parse_faults
+from firmware_protocol.faults import (BOOT_SECONDS, DISCONNECT_SECONDS, POWER_OFF_SECONDS, Fault, FaultPlan,
+                                      parse_faults)
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -31,28 +32,32 @@ def test_parse_faults_and_the_plan_counts_lines():
     assert str(plan) == "" and len(plan.fired) == 3
 
 
-def test_grbl_reset_while_moving_alarms_and_wipes_the_belief_not_the_world():
+def test_grbl_reset_while_moving_alarms_pauses_and_keeps_the_position():
     emu, world = grbl("reset@3")
     run_exchange(emu, [(b"G0 X90\n", OK), (b"\n", OK)])        # empty lines count too
     emu.advance(0.5)
     moved = world.ring_deg
     assert 0 < moved < 90
-    run_exchange(emu, [(b"G0 Y5\n", b"ALARM:3\r\n" + BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n")])
-    assert emu.state is GrblState.ALARM
+    emu.receive(b"G0 Y5\n")
+    assert emu.transmit() == b"ALARM:3\r\n"
+    emu.receive(b"?$X\n")                                     # lost in GRBL's 0.5 s pause
+    assert emu.next_event_in() == pytest.approx(0.5)
+    run_exchange(emu, [(b"", BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n")])
+    assert emu.state is GrblState.ALARM and emu.now == pytest.approx(1.0)
     emu.advance(10.0)
     assert world.ring_deg == moved                            # stopped where it was; Y5 never ran
     run_exchange(emu, [
-        (b"?", b"<Alarm|MPos:0.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n"),
+        (b"?", f"<Alarm|MPos:{moved:.3f},0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n".encode()),
         (b"$X\n", b"[MSG:Caution: Unlocked]\r\nok\r\n"),
         (b"G0 X1\nG4 P0\n", OK + OK),
     ])
-    assert world.ring_deg == pytest.approx(moved + 1.0)      # the belief is offset from the world now
+    assert world.ring_deg == 1.0                              # the belief is still the world
 
 
 def test_grbl_reset_when_idle_has_no_alarm():
     emu, world = grbl("reset@3")
     run_exchange(emu, [(b"G0 X5\nG4 P0\n", OK + OK), (b"G0 X0\n", BANNER),
-                       (b"?", b"<Idle|MPos:0.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n")])
+                       (b"?", b"<Idle|MPos:5.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n")])
     assert world.ring_deg == 5.0
 
 
@@ -106,21 +111,24 @@ def test_grblhal_power_fault_through_the_factory():
 
 
 def test_marlin_faults():
-    emu, world = build_emulator("marlin-ring", faults="garble@2,drop-ok@3,reset@5")
+    # software endstops off: the move below goes under the believed 0 that power-up gives
+    emu, world = build_emulator("marlin-ring", faults="garble@2,drop-ok@3,reset@5", settings=["M211 S0"])
     emu.transmit()
     n = lambda i, c: mc.numbered(i, c).encode() + b"\n"  # noqa: E731
     run_exchange(emu, [
         (n(0, "M110 N0"), b"ok\n"),
-        (n(1, "G0 Y19"), b"Error:checksum mismatch, Last Line: 0\nResend: 1\nok\n"),
-        (n(1, "G0 Y19"), b""),                  # executed; its ok is lost
+        (n(1, "G0 Y-9"), b"Error:checksum mismatch, Last Line: 0\nResend: 1\nok\n"),
+        (n(1, "G0 Y-9"), b""),                  # executed; its ok is lost
         (n(2, "M400"), b"ok\n"),
     ])
-    assert world.head_mm == 39.0               # belief 19 + the head's power-up position 20
+    assert world.head_mm == 11.0               # belief -9 + the head's power-up position 20
     emu.receive(n(3, "G0 Y18"))
-    out = emu.transmit()
-    assert out.startswith(b"start\n")           # the firmware reset: line numbers start again
+    assert emu.transmit() == b""                 # Marlin's reset is a restart: a moment of silence
+    assert emu.next_event_in() == pytest.approx(BOOT_SECONDS)
+    emu.advance(None)
+    assert emu.transmit().startswith(b"start\n")  # the firmware restarted: line numbers start again
     run_exchange(emu, [(n(1, "M114"), b"X:0.00 Y:0.00 Z:0.00 A:0.00 Count X:0 Y:0 Z:0 A:0\nok\n")])
-    assert world.head_mm == 39.0               # the thread and the axes stay put
+    assert world.head_mm == 11.0               # the thread and the axes stay put
 
 
 def test_power_fault_on_a_pty_drops_the_port_and_the_firmware_restarts(tmp_path):

@@ -30,8 +30,10 @@ def test_step_lines_progress_comment_moves_and_dwell():
     d = dialect_for(m)
     step = HookStep(index=4, pin=17, direction=1, total=2530, dwell_s=5.0,
                     moves=[Move(20.4, 0.0, 10800.0), Move(20.4, 10.0, 4000.0), Move(21.6, 10.0, None)])
-    assert d.step_lines(step) == ["; pin 17 (step 5/2530)", "G1 A20.4 X0 F10800", "G1 A20.4 X10 F4000",
-                                  "G1 A21.6 X10", "G4 P5"]
+    # each line names only the axis it moves: a ring move cannot move the head, nor the reverse
+    assert d.step_lines(step) == ["; pin 17 (step 5/2530)", "G1 A20.4 X0 F10800", "G1 X10 F4000",
+                                  "G1 A21.6", "G4 P5"]
+    assert d.step_lines(step, prev=Move(19.2, 0.0))[1] == "G1 A20.4 F10800"
 
 
 def test_dynamixel_machines_have_no_gcode_dialect():

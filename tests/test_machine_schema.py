@@ -117,3 +117,8 @@ def test_bundled_machines_found_after_a_plain_install(tmp_path):
                          check=True, capture_output=True, text=True).stdout.splitlines()
     assert out[0].startswith(str(target))
     assert {"grbl-ring", "grblhal-ring", "marlin-ring", "dynamixel-ring"} <= set(out[1].split(","))
+    # every package of the tree is installed (a package missing from pyproject's list is missing here)
+    packages = {str(d.relative_to(ROOT)) for top in ("stringbot", "firmware_protocol")
+                for d in [ROOT / top, *(ROOT / top).rglob("*")] if (d / "__init__.py").is_file()}
+    missing = sorted(p for p in packages if not (target / p / "__init__.py").is_file())
+    assert not missing, f"not installed by a plain pip install (add to pyproject's packages): {missing}"

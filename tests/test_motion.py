@@ -151,3 +151,30 @@ def test_estimate_figures_follow_from_the_moves():
 
 def test_plan_type_is_the_planner_one():
     assert isinstance(make_plan([0, 1]), Plan)
+
+
+@pytest.mark.parametrize("name", ["grbl-ring", "grblhal-ring", "marlin-ring", "dynamixel-ring"])
+@pytest.mark.parametrize("direction", ["auto", "cw", "ccw"])
+def test_hooking_moves_are_safe_by_construction(name, direction):
+    """From the job's start (ring 0, head IN) every move is one axis only, the ring turns only
+    with the head fully IN or OUT, and the head crosses the pin circle only at a gap."""
+    from stringbot.motion.safety import check_moves
+    doc = tomllib.loads((bundled_dir() / f"{name}.toml").read_text())
+    doc.setdefault("winding", {})["wrap_direction"] = direction
+    machine = machine_from_dict(doc)
+    seq = random_sequence(400, machine.pins, seed=7)
+    steps = hook_steps(make_plan(seq, machine.pins), machine)
+    check_moves(machine, (0.0, machine["head.in_mm"]), [mv for s in steps for mv in s.moves])
+
+
+def test_unsafe_moves_are_named():
+    from stringbot.motion import Move
+    from stringbot.motion.safety import UnsafeMove, check_moves
+    m = load_machine("grbl-ring")                       # pitch 1.2 deg, gap centres at 0.6 + k * 1.2
+    with pytest.raises(UnsafeMove, match="together"):
+        check_moves(m, (0.0, 0.0), [Move(0.6, 12.0)])
+    with pytest.raises(UnsafeMove, match="neither IN"):
+        check_moves(m, (0.6, 6.0), [Move(1.8, 6.0)])
+    with pytest.raises(UnsafeMove, match="across the pin circle at ring 0"):
+        check_moves(m, (0.0, 0.0), [Move(0.0, 12.0)])
+    check_moves(m, (0.0, 0.0), [Move(0.6, 0.0), Move(0.6, 12.0), Move(1.8, 12.0), Move(1.8, 0.0)])

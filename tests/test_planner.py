@@ -250,7 +250,7 @@ def test_solve_matches_dense_least_squares():
 
 def test_fitness_is_high_on_chords_through_the_dark_bar():
     size = 101
-    plan = plan_picture("x", pins=60, size=size, lines=60, picture=picture(bar_picture(size)))
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=60, picture=picture(bar_picture(size)))
     xy = plan.pin_xy
     # chords that run along the bar (both ends near its height) dominate the sequence
     mids = np.array([(xy[a, 1] + xy[b, 1]) / 2 for a, b in plan.chord_list()])
@@ -267,7 +267,7 @@ def test_auto_lines_follows_the_paper():
 def test_plan_records_every_knob_and_the_stats():
     size = 101
     pic = picture(bar_picture(size))
-    plan = plan_picture("x", pins=60, size=size, lines=50, start_pin=7, alpha=0.25, beta=4.0, gamma=8.0,
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=50, start_pin=7, alpha=0.25, beta=4.0, gamma=8.0,
                         T=20.0, epsilon=1, iterations=15, picture=pic)
     assert plan.sequence[0] == 7 and len(plan.sequence) == 51 and plan.connected
     p = plan.parameters
@@ -285,9 +285,9 @@ def test_fitness_beats_a_random_sequence_on_ssim():
     size = 101
     gray = bar_picture(size)
     pic = picture(gray)
-    plan = plan_picture("x", pins=60, size=size, lines=80, picture=pic)
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=80, picture=pic)
     rng = np.random.default_rng(0)
-    rand = plan_picture("x", pins=60, size=size, lines=80, picture=pic)
+    rand = plan_picture("x", method="fitness", pins=60, size=size, lines=80, picture=pic)
     seq = [0]
     for _ in range(80):
         seq.append(int((seq[-1] + rng.integers(1, 60)) % 60))
@@ -299,8 +299,7 @@ def test_greedy_stays_off_white_and_respects_its_loop_rule():
     size = 101
     gray = bar_picture(size)
     space = chord_space(60)
-    indptr, indices = chord_pixels(space, size)
-    seq = greedy_sequence(space, size, indptr, indices, gray, frame_mask(size, "circle"), 5000)
+    seq = greedy_sequence(space, size, gray, frame_mask(size, "circle"), 5000)
     for k in range(1, len(seq)):
         assert seq[k] not in seq[max(0, k - 3):k]
     # a thin bar can take only so much: the run stops early once every chord's sum is <= 0
@@ -318,13 +317,13 @@ def test_blank_picture_is_refused(method):
 
 
 def test_tiny_ring_runs_out_of_chords_gracefully():
-    plan = plan_picture("x", pins=3, size=101, lines=10, picture=picture(bar_picture()))
+    plan = plan_picture("x", method="fitness", pins=3, size=101, lines=10, picture=picture(bar_picture()))
     assert 1 <= plan.stats["lines"] <= 3 and len(set(map(frozenset, plan.chord_list()))) == plan.stats["lines"]
 
 
 def test_disconnected_plan_is_a_chord_set():
     size = 101
-    plan = plan_picture("x", pins=60, size=size, lines=40, disconnected=True, picture=picture(bar_picture(size)))
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=40, disconnected=True, picture=picture(bar_picture(size)))
     assert not plan.connected and plan.sequence == [] and len(plan.chords) == 40
     assert len(set(plan.chords)) == 40
     assert draw(plan, size=101).min() == 0
@@ -332,7 +331,7 @@ def test_disconnected_plan_is_a_chord_set():
 
 def test_square_frame_plan_never_uses_a_side_chord():
     size = 101
-    plan = plan_picture("x", pins=48, frame="square", size=size, lines=60, picture=picture(bar_picture(size)))
+    plan = plan_picture("x", method="fitness", pins=48, frame="square", size=size, lines=60, picture=picture(bar_picture(size)))
     xy = plan.pin_xy
     for a, b in plan.chord_list():
         assert not any(np.isclose(xy[a, k], e) and np.isclose(xy[b, k], e) for k in (0, 1) for e in (0, 1))
@@ -347,8 +346,8 @@ def test_importance_pulls_chords_to_the_important_half(tmp_path):
     mask = np.zeros((size, size), dtype=np.uint8)
     mask[:, : size // 2] = 255  # left half important
     Image.fromarray(mask).save(tmp_path / "m.png")
-    with_mask = plan_picture("x", pins=60, size=size, lines=80, picture=pic, importance=tmp_path / "m.png")
-    plain = plan_picture("x", pins=60, size=size, lines=80, picture=pic)
+    with_mask = plan_picture("x", method="fitness", pins=60, size=size, lines=80, picture=pic, importance=tmp_path / "m.png")
+    plain = plan_picture("x", method="fitness", pins=60, size=size, lines=80, picture=pic)
     def left_share(plan):
         img = draw(plan, size=101) == 0
         return img[:, :50].sum() / img.sum()
@@ -363,7 +362,7 @@ def test_importance_pulls_chords_to_the_important_half(tmp_path):
     ("method", "magic", "--method"), ("iterations", 0, "--iterations"),
 ])
 def test_bad_knobs_are_named(knob, value, words):
-    kw = dict(pins=60, size=101, lines=10, picture=picture(bar_picture()))
+    kw = dict(pins=60, size=101, lines=10, picture=picture(bar_picture()), method="fitness")
     kw[knob] = value
     with pytest.raises(BadInput) as info:
         plan_picture("x", **kw)
@@ -372,7 +371,7 @@ def test_bad_knobs_are_named(knob, value, words):
 
 def test_render_draws_each_chord_black_on_white():
     size = 101
-    plan = plan_picture("x", pins=60, size=size, lines=30, picture=picture(bar_picture(size)))
+    plan = plan_picture("x", method="fitness", pins=60, size=size, lines=30, picture=picture(bar_picture(size)))
     img = draw(plan, size=201)
     assert img.dtype == np.uint8 and set(np.unique(img)) <= {0, 255}
     rc = np.rint(plan.pin_xy[plan.sequence][:, ::-1] * 200).astype(int)
@@ -405,3 +404,72 @@ def test_greedy_weight_is_threadtones_thread_scaled_to_the_working_size():
     assert literal.parameters["weight_at_size"] == 15
     # ten times lighter threads: the bar takes about ten times as many before every sum is <= 0
     assert 5 * literal.stats["lines"] < scaled.stats["lines"]
+
+
+# ---- greedy: ThreadTone as published ---------------------------------------------------------
+
+def threadtone_literal(gray, pin_rc, lines, weight, half):
+    """ThreadTone's loop written out as threadTone.py does it, one chord at a time (a reference)."""
+    size = gray.shape[0]
+    img = 255.0 - gray
+    yy, xx = np.mgrid[:size, :size]
+    c = (size - 1) / 2
+    img[(yy - c) ** 2 + (xx - c) ** 2 > (c + 0.5) ** 2] = 0.0
+    P = len(pin_rc)
+    prev, old, seq = [], 0, [0]
+    for _ in range(lines):
+        best, best_pin = 0.0, old
+        for index in range(1, P):
+            pin = (old + index) % P
+            (r0, c0), (r1, c1) = pin_rc[old], pin_rc[pin]
+            n = max(int(np.hypot(r1 - r0, c1 - c0)), 1)
+            rr = np.linspace(r0, r1, n).astype(int)   # ThreadTone: linspace, truncated
+            cc = np.linspace(c0, c1, n).astype(int)
+            s = img[rr, cc].sum()
+            if s > best and pin not in prev:
+                best, best_pin = s, pin
+        if best_pin == old:
+            break
+        prev = (prev + [best_pin])[-3:]
+        # cv2.line(thickness=3) one pixel down-right of the sampled line: within 2 + 1/2 px
+        (r0, c0), (r1, c1) = pin_rc[old] + 1, pin_rc[best_pin] + 1
+        d = np.array([r1 - r0, c1 - c0], float)
+        L = np.hypot(*d)
+        u = np.clip(((yy - r0) * d[0] + (xx - c0) * d[1]) / L ** 2, 0, 1)
+        dist = np.hypot(yy - r0 - u * d[0], xx - c0 - u * d[1])
+        img[dist <= half + 0.5 * abs(d).max() / L + 1e-9] -= weight
+        seq.append(best_pin)
+        old = best_pin
+    return seq
+
+
+def test_greedy_is_threadtones_loop():
+    size, P = 61, 24
+    rng = np.random.default_rng(5)
+    g = np.full((size, size), 255.0)
+    g[20:40, 10:50] = 40.0
+    g += rng.uniform(0, 30, g.shape)
+    g = np.clip(g, 0, 255)
+    space = chord_space(P)
+    mask = frame_mask(size, "circle")
+    seq = greedy_sequence(space, size, g, mask, 400, weight=15.0, reference_radius=None)
+    from stringbot.planner.chords import pin_pixels
+    ref = threadtone_literal(g, pin_pixels(space.pin_xy, size), 400, 15.0, 2.0)
+    assert len(seq) > 30 and len(seq) < 401  # it stopped by ThreadTone's rule: no positive sum left
+    assert seq == ref
+
+
+def test_threadtone_line_sums_are_isotropic_and_its_band_is_perpendicular():
+    from stringbot.planner.greedy import band_pixels, cv_half_width, line_samples
+    size = 201
+    starts, flat = line_samples(10, 10, np.array([10, 190]), np.array([190, 190]), size)
+    n = np.diff(np.append(starts, len(flat)))
+    assert list(n) == [180, int(np.hypot(180, 180))]  # int(hypot) points: a diagonal is not under-counted
+    assert cv_half_width(3) == 2.0 and cv_half_width(4) == 2.0
+    horizontal = band_pixels(100, 20, 100, 180, size, 2.0)
+    assert set(np.unique(horizontal // size)) == {98, 99, 100, 101, 102}  # cv2.line(thickness=3): 5 rows
+    diagonal = band_pixels(20, 20, 180, 180, size, 2.0)
+    r, c = diagonal // size, diagonal % size
+    inner = (r > 30) & (r < 170)
+    across = np.abs(r - c)[inner] / np.sqrt(2)  # distance from the thread, perpendicular to it
+    assert across.max() <= 2.0 + 0.36 and np.sum(inner) / 140 > 6  # as wide across, not squeezed on a row

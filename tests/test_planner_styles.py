@@ -32,6 +32,7 @@ def silhouette(n=SIZE):
 
 
 def plan(gray, **kw):
+    kw.setdefault("method", "fitness")
     return plan_picture("x", pins=PINS, size=SIZE, lines=LINES, picture=picture(gray), **kw)
 
 

@@ -11,12 +11,16 @@ from stringbot.winding.resume import locate, tolerance
 from test_wind_sim import small_plan
 
 
-def test_one_step_of_the_ring_plus_rounding_on_grbl_ring():
+def test_one_step_of_the_ring_plus_rounding_on_grbl_ring(tmp_path):
     m = load_machine("grbl-ring")                      # 44.4444 steps per degree: 0.0225 deg a step
     ring, head = position_tolerance(m)
     assert 1 / 44.4444 < ring < 1 / 44.4444 + 0.01
-    # the head's steps are not in this file: a coarse step is assumed
-    assert UNKNOWN_STEP < head < UNKNOWN_STEP + 0.01
+    # the head's steps from the file (80 per mm: 0.0125 mm a step)
+    assert 1 / 80 < head < 1 / 80 + 0.01
+    # a file without them: a coarse step is assumed
+    text = "".join(line for line in open(m.path).readlines() if not line.startswith("steps_per_mm"))
+    (tmp_path / "bare.toml").write_text(text)
+    assert UNKNOWN_STEP < position_tolerance(load_machine(str(tmp_path / "bare.toml")))[1] < UNKNOWN_STEP + 0.01
     # the firmware's own $100/$101 when read; Marlin prints two decimals
     ring2, head2 = position_tolerance(m, ring_steps=100.0, head_steps=80.0, decimals=2)
     assert ring2 == pytest.approx(0.01 + 0.005 + 2 * 2 ** -23 * 36000)

@@ -58,10 +58,11 @@ def test_the_planner_reports_its_stages_and_sampling_counts(tmp_path, monkeypatc
     Image.fromarray(np.where((x - 40) ** 2 + (y - 40) ** 2 < 400, 20, 230).astype(np.uint8)).save(pic)
     seen = []
     with reporting(lambda stage, done, total: seen.append((stage, done, total))):
-        plan_picture(pic, pins=40, size=64, lines=450)
+        plan_picture(pic, pins=40, size=64, lines=450, method="fitness")
+        plan_picture(pic, pins=40, size=64, lines=60)          # the default method
     stages = [s for s, _, _ in seen]
     for want in ("reading the picture", "chords", "solving (detail)", "sampling (detail)", "solving (fill)",
-                 "scoring (fill)"):
+                 "scoring (fill)", "residual"):
         assert want in stages, stages
     assert ("sampling", 400, 450) in seen
     shown = PlanProgress(after=0.0, every=1.0, stream=io.StringIO())

@@ -60,5 +60,20 @@ class Emulator:
         """
         return None
 
+    def port_opened(self) -> bool:
+        """A host opened the port.  A board that restarts then (``controller.reset_on_open``)
+        does so and returns True; by default nothing happens."""
+        return False
+
+    def idle(self) -> None:
+        """The transport is about to wait for the host: if the machine is at rest, the world
+        writes its record now if part of it is still unwritten (see ``World.flush``)."""
+        world = getattr(self, "world", None)
+        if world is not None and not self.busy:
+            world.flush()
+
     def close(self) -> None:
         """The transport is done with the emulator (flush records); optional."""
+        world = getattr(self, "world", None)
+        if world is not None:
+            world.close()

@@ -118,7 +118,7 @@ def parse_faults(spec):
 class DynamixelEmulator(Emulator):
     """Two X-series servos on one Protocol 2.0 bus (ids and geometry from the machine file)."""
 
-    def __init__(self, machine, *, world=None, faults=None, realtime=False):
+    def __init__(self, machine, *, world=None, faults=None, realtime=False, presets=()):
         super().__init__()
         self.machine = machine
         self.world = world
@@ -144,6 +144,18 @@ class DynamixelEmulator(Emulator):
         self._events = []          # (time, action, fault) pending fault actions
         self._last_world = self._physical()
         self.log = []              # (now, text) notable events, for tests and debugging
+        for preset in presets:     # control-table items as the servos were left (--set)
+            self.preset(preset)
+
+    def preset(self, preset):
+        """Start with a control-table item of ``--set`` (``ring:Drive Mode=1``), as written with
+        torque off; ValueError names an unknown servo."""
+        who = preset.value.who
+        servo_id = {"ring": self.ring_id, "head": self.head_id}.get(who, who)
+        if servo_id not in self.servos:
+            raise ValueError(f"--set {preset.text!r}: no servo {who!r} on this bus; expected "
+                             f"'ring', 'head', {self.ring_id} or {self.head_id}")
+        self.servos[servo_id]._apply(dx.CONTROL_TABLE[preset.value.item], preset.value.value, self.now)
 
     # -- geometry -------------------------------------------------------------------------------
     def _head_ticks(self, mm):

@@ -5,7 +5,9 @@ clock and the faults; a servo owns its control table (the subset of
 :mod:`firmware_protocol.dynamixel` with its access rules), its shaft (the
 physical multi-turn position, which only motion changes) and the base that
 makes Present Position read within one turn after a power-up, a reboot, a
-CLEAR or a change of Operating Mode.
+CLEAR or a change of Operating Mode or Drive Mode.  Drive Mode's Reverse Mode
+(bit 0) counts positions the other way round the shaft, and its Time-based
+Profile (bit 2) reads Profile Velocity and Acceleration as milliseconds.
 """
 
 import enum
@@ -13,11 +15,14 @@ import math
 
 from firmware_protocol import dynamixel as dx
 
-__all__ = ["XServo", "Profile", "Power", "RPM_PER_UNIT", "REV_PER_MIN2_PER_UNIT", "FIRMWARE_VERSION"]
+__all__ = ["XServo", "Profile", "Power", "RPM_PER_UNIT", "REV_PER_MIN2_PER_UNIT", "FIRMWARE_VERSION",
+           "DRIVE_REVERSE", "DRIVE_TIME_BASED"]
 
 RPM_PER_UNIT = 0.229            # Profile Velocity / Velocity Limit unit
 REV_PER_MIN2_PER_UNIT = 214.577  # Profile Acceleration unit
 VELOCITY_LIMIT_DEFAULT = 128     # XM430-W350 factory Velocity Limit (44)
+DRIVE_REVERSE = 0x01             # Drive Mode (10) bit 0: Reverse Mode
+DRIVE_TIME_BASED = 0x04          # Drive Mode (10) bit 2: Time-based Profile
 FIRMWARE_VERSION = 46
 
 
@@ -106,12 +111,22 @@ class XServo:
         return self.get("ID")
 
     @property
+    def direction(self):
+        """-1 in Reverse Mode (Drive Mode bit 0): positions count the other way round the shaft."""
+        return -1 if self.get("Drive Mode") & DRIVE_REVERSE else 1
+
+    @property
+    def counted(self):
+        """The shaft as the servo counts it (reversed in Reverse Mode), in whole ticks."""
+        return round(self.direction * self.shaft)
+
+    @property
     def present(self):
-        return round(self.shaft) - self.base + self.get("Homing Offset")
+        return self.counted - self.base + self.get("Homing Offset")
 
     def _rebase(self):
         """Present Position := the shaft's angle within one turn (+ Homing Offset)."""
-        self.base = round(self.shaft) - round(self.shaft) % self.ticks_per_turn
+        self.base = self.counted - self.counted % self.ticks_per_turn
         self.set("Goal Position", self.present)
 
     # -- time ---------------------------------------------------------------------------------
@@ -126,7 +141,19 @@ class XServo:
         self.update(now)
         self.motion = None
 
-    def _limits(self):
+    def _limits(self, distance):
+        """(vmax, amax) of a move of ``distance`` ticks under the profile.
+
+        Velocity-based (the default): Profile Velocity and Acceleration in 0.229 rpm and
+        214.577 rev/min^2 units.  Time-based (Drive Mode bit 2): Profile Velocity is the
+        move's time and Profile Acceleration its ramp time, in ms.
+        """
+        limit = (self.get("Velocity Limit") or 1023) * RPM_PER_UNIT / 60.0 * self.ticks_per_turn
+        if self.get("Drive Mode") & DRIVE_TIME_BASED and self.get("Profile Velocity"):
+            total = self.get("Profile Velocity") / 1000.0
+            ramp = min(self.get("Profile Acceleration") / 1000.0, total / 2)
+            vmax = min(abs(distance) / (total - ramp), limit) if distance else limit
+            return vmax, (vmax / ramp if ramp else math.inf)
         vel = self.get("Profile Velocity") or self.get("Velocity Limit") or 1023
         vmax = vel * RPM_PER_UNIT / 60.0 * self.ticks_per_turn
         acc = self.get("Profile Acceleration")
@@ -189,7 +216,8 @@ class XServo:
                 return 0x04
             if f.name == "Operating Mode" and value not in (0, 1, 3, 4, 5, 16):
                 return 0x04
-            if f.name == "Profile Velocity" and value > self.get("Velocity Limit"):
+            if f.name == "Profile Velocity" and value > self.get("Velocity Limit") \
+                    and not self.get("Drive Mode") & DRIVE_TIME_BASED:     # time-based: milliseconds
                 return 0x06
             if f.name == "Torque Enable" and value and self.get("Hardware Error Status"):
                 return 0x01
@@ -206,7 +234,7 @@ class XServo:
     def _apply(self, f, value, now):
         old = self.get(f.name)
         self.set(f.name, value)
-        if f.name == "Operating Mode" and value != old:
+        if f.name in ("Operating Mode", "Drive Mode") and value != old:
             self._rebase()
         elif f.name == "Torque Enable":
             if value and not old:
@@ -219,8 +247,8 @@ class XServo:
             self.set("Goal Position", self.present)
         elif f.name == "Goal Position" and self.get("Torque Enable"):
             self.stop(now)
-            target = value - self.get("Homing Offset") + self.base
-            vmax, amax = self._limits()
+            target = self.direction * (value - self.get("Homing Offset") + self.base)
+            vmax, amax = self._limits(target - self.shaft)
             if target != round(self.shaft):
                 self.motion = Profile(self.shaft, target, now, vmax, amax)
 

@@ -2,8 +2,9 @@
 
 :class:`GcodeFirmware` owns the virtual clock and its events (motion blocks
 ending, a dwell ending, the port coming back), the coupling of the firmware's
-belief to the physical world (``physical = belief + offset`` on the ring and
-head axes), the port going down on a ``power`` or ``disconnect`` fault, and the
+belief to the physical world (``physical = belief * step_scale + offset`` on
+the ring and head axes, ``step_scale`` being the firmware's steps per unit
+over the build's: 1 when they agree), the port going down on a ``power`` or ``disconnect`` fault, and the
 line being executed as a *task*: a generator that yields a predicate to wait
 on (room in the planner, motion finished, a time reached) and returns its
 response.  GRBL and Marlin subclass it with their own line reader, parser and
@@ -12,8 +13,9 @@ words.
 
 import enum
 import logging
+import math
 
-from ..faults import DISCONNECT_SECONDS, POWER_OFF_SECONDS, FaultPlan
+from ..faults import BOOT_SECONDS, DISCONNECT_SECONDS, POWER_OFF_SECONDS, FaultPlan
 from .base import Emulator
 from .motion import MotionQueue
 
@@ -29,6 +31,7 @@ class Power(enum.Enum):
     ON = "on"
     OFF = "off"              # a power loss: the firmware is not running
     UNPLUGGED = "unplugged"  # the cable is out: the firmware runs, the port is gone
+    BOOTING = "booting"      # the board restarts (reboot, reset on open): deaf and mute a moment
 
 
 def physical_home(machine, ring_now):
@@ -65,12 +68,16 @@ class GcodeFirmware(Emulator):
         n = len(self.axes)
         self.motion = MotionQueue(planner_blocks, rates or [6000.0] * n, accels or [100.0] * n, [0.0] * n)
         self.offset = [0.0] * n
+        self.step_scale = [1.0] * n   # physical units per firmware unit: its steps/unit over the build's
         self.power = Power.ON
         self._out = bytearray()
         self._rx = bytearray()
         self._task = None          # (generator, predicate it waits on, silent) of the running line
         self._timer = None         # virtual time a dwell ends
         self._port_back_at = None
+        self._boot_at = None       # virtual time a rebooting board starts its firmware
+        self._executing_seq = None  # line count of the line being started (for kind@N+F)
+        self._fire_now = []        # faults of that line to fire once it has started
         self.dropped_bytes = 0
 
     # ---- the Emulator interface -------------------------------------------------------------
@@ -85,6 +92,11 @@ class GcodeFirmware(Emulator):
             times.append(max(self._timer - self.now, 0.0))
         if self._port_back_at is not None:
             times.append(max(self._port_back_at - self.now, 0.0))
+        if self._boot_at is not None:
+            times.append(max(self._boot_at - self.now, 0.0))
+        t = self.faults.next_time()
+        if t is not None:
+            times.append(max(t - self.now, 0.0))
         return times
 
     def next_event_in(self):
@@ -111,6 +123,20 @@ class GcodeFirmware(Emulator):
                 break
         return dt
 
+    def _note(self, event, **detail):
+        """A notable event for the world's record (virtual time ``t`` added)."""
+        self.world.note(event, t=round(self.now, 6), **detail)
+
+    def port_opened(self):
+        """A host opened the port: a board with ``controller.reset_on_open`` restarts (an Arduino
+        Uno resets on DTR).  Returns True when it did."""
+        if not self.machine["controller.reset_on_open"] or self.power is Power.OFF:
+            return False
+        log.info("port opened: the board restarts (controller.reset_on_open)")
+        self._note("reboot", at="port opened", moving=self.motion.moving)
+        self._reboot()
+        return True
+
     def reconnect(self):
         """Run the clock until the port is back (no-op if it is up)."""
         if self._port_back_at is not None:
@@ -123,6 +149,12 @@ class GcodeFirmware(Emulator):
         self.now += step
         if self.motion.position != before or done:
             self._move_world([b.target for b in done] + [self.motion.position])
+        for fault in self.motion.reached(done) + self.faults.due(self.now):
+            self._fire(fault)
+        if self._boot_at is not None and self.now >= self._boot_at - EPS:
+            self._boot_at = None
+            self.power = Power.ON
+            self._power_on()
         if self._port_back_at is not None and self.now >= self._port_back_at - EPS:
             self._port_back()
         self._after_run()
@@ -133,10 +165,34 @@ class GcodeFirmware(Emulator):
 
     def _move_world(self, points):
         for p in points:
-            ring = p[self.ring_i] + self.offset[self.ring_i]
-            head = p[self.head_i] + self.offset[self.head_i]
+            ring = self._to_physical(self.ring_i, p[self.ring_i])
+            head = self._to_physical(self.head_i, p[self.head_i])
             if (ring, head) != (self.world.ring_deg, self.world.head_mm):
                 self.world.move(ring, head)
+                if self.world.head_mm != head:
+                    # the head ran into its mechanical end: steps lost, the belief goes on without it
+                    self.offset[self.head_i] += self.world.head_mm - head
+
+    def _to_physical(self, i, belief):
+        """Where axis ``i`` physically is when the firmware believes ``belief``."""
+        return belief * self.step_scale[i] + self.offset[i]
+
+    def _set_step_scale(self, i, scale, *, keep_steps):
+        """A steps-per-unit setting of axis ``i`` changed (the motors have not moved).
+
+        ``keep_steps`` (GRBL): the firmware counts its position in steps, so the
+        position it reports changes; otherwise (Marlin) it keeps the position in
+        units and recounts the steps.
+        """
+        old, self.step_scale[i] = self.step_scale[i], scale
+        if scale == old:
+            return
+        position = list(self.motion.position)
+        if keep_steps:
+            position[i] *= old / scale
+            self.motion.set_position(position)
+        else:
+            self.offset[i] += position[i] * (old - scale)
 
     def _physical(self):
         return [self.world.ring_deg, self.world.head_mm]
@@ -154,6 +210,8 @@ class GcodeFirmware(Emulator):
         position = list(self.motion.position)
         position[self.ring_i], position[self.head_i] = self._physical()
         self.offset = [0.0] * len(self.axes)
+        for i in (self.ring_i, self.head_i):
+            self.offset[i] = position[i] * (1.0 - self.step_scale[i])
         self.motion.set_position(position)
         return position
 
@@ -164,7 +222,7 @@ class GcodeFirmware(Emulator):
         for i, value in ((self.head_i, home_head), (self.ring_i, home_ring)):
             if axes is None or self.axes[i] in axes:
                 pos = list(pos)
-                pos[i] = value - self.offset[i]
+                pos[i] = (value - self.offset[i]) / self.step_scale[i]
                 targets.append(tuple(pos))
         return targets
 
@@ -179,18 +237,13 @@ class GcodeFirmware(Emulator):
 
         Returns ``(raw, kinds)``: the line as received (garbled in transit by
         a ``garble`` fault) and the set of fault kinds left for the protocol
-        to apply (``error``, ``drop-ok``); or None when the line is gone.
+        to apply (``error``, ``drop-ok``, ``ignore``); or None when the line is gone.
         """
         kinds = self.faults.next_line()
-        if "power" in kinds:
-            self._port_down(Power.OFF, POWER_OFF_SECONDS)
-            return None
-        if "disconnect" in kinds:
-            self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
-            return None
-        if "reset" in kinds:
-            self._brownout()
-            return None
+        for kind in ("power", "disconnect", "reboot", "reset"):
+            if kind in kinds:
+                self._fire_kind(kind, f"line={self.faults.lines}")
+                return None
         if "garble" in kinds:
             raw = self.garble(raw)
         return raw, kinds
@@ -204,6 +257,29 @@ class GcodeFirmware(Emulator):
         log.info("fault: line garbled to %r", bytes(raw))
         return bytes(raw)
 
+    def _fire(self, fault):
+        """A machine fault at a time or inside a motion (``kind@t=T``, ``kind@N+F``)."""
+        if fault.fraction is not None:
+            self.faults.mark_fired(fault)
+        self._fire_kind(fault.kind, fault.when())
+
+    def _fire_kind(self, kind, at):
+        if self.power in (Power.OFF, Power.BOOTING) or (kind == "disconnect" and not self.port_up):
+            log.info("fault %s@%s: nothing to hit (the firmware is %s)", kind, at, self.power.value)
+            self._note(kind, at=at, skipped=f"the firmware is {self.power.value}")
+            return
+        log.info("fault %s@%s at t=%.4f", kind, at, self.now)
+        self._note({"power": "power off", "disconnect": "port down"}.get(kind, kind), at=at,
+                   moving=self.motion.moving)
+        if kind == "power":
+            self._port_down(Power.OFF, POWER_OFF_SECONDS)
+        elif kind == "disconnect":
+            self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
+        elif kind == "reboot":
+            self._reboot()
+        else:
+            self._fault_reset()
+
     def _port_down(self, power, seconds):
         log.info("fault: port down (%s) for %.2f s", power.value, seconds)
         self.power = power
@@ -213,7 +289,8 @@ class GcodeFirmware(Emulator):
         self._clear_input()
         if power is Power.OFF:
             self.motion.clear()
-            self._task, self._timer = None, None
+            self._task, self._timer, self._boot_at = None, None, None
+            self._stop_resets()
         self._port_back_at = self.now + seconds
 
     def _port_back(self):
@@ -221,20 +298,84 @@ class GcodeFirmware(Emulator):
         self._port_back_at = None
         self.power = Power.ON
         self.port_up = True
+        self._note("power on" if was_off else "port up")
         if was_off:
             self._power_on()
         log.info("port back up")
+
+    def _reboot(self):
+        """The board restarts: everything in progress is lost at once; for BOOT_SECONDS it hears
+        and says nothing; then the firmware starts with its position lost (:meth:`_power_on`)."""
+        self.motion.clear()
+        self._task, self._timer = None, None
+        self._out.clear()
+        self._rx.clear()
+        self._clear_input()
+        self._stop_resets()
+        if self.power is Power.UNPLUGGED:       # nobody listens: it is up again by the time anyone does
+            self._power_on()
+            return
+        self.power = Power.BOOTING
+        self._boot_at = self.now + BOOT_SECONDS
+
+    @property
+    def running(self):
+        """The firmware's main loop runs (with or without the port)."""
+        return self.power in (Power.ON, Power.UNPLUGGED)
+
+    def _stop_resets(self):
+        """Subclass hook: forget a reset in progress (the board lost power or restarted)."""
+
+    def _fault_reset(self):
+        """Subclass hook: a soft reset (``reset`` fault); the firmware's own kind of reset."""
+        self._reboot()
 
     def _clear_input(self):
         """Subclass hook: forget partial lines and queued commands."""
 
     def _power_on(self):
-        """Subclass hook: the firmware starts after a power loss."""
-
-    def _brownout(self):
-        """Subclass hook: the firmware resets by itself."""
+        """Subclass hook: the firmware starts after a power loss or a reboot (position lost)."""
 
     # ---- the running line ---------------------------------------------------------------------------
+    def _start_line(self, result, silent, seq):
+        """Start the task of received line ``seq``; then fire its ``kind@seq+F`` faults that no
+        motion took (a line that moves nothing: as it starts)."""
+        self._executing_seq = seq
+        try:
+            self._start_task(result, silent)
+        finally:
+            self._executing_seq = None
+        now, self._fire_now = self._fire_now + self.faults.fractions(seq), []
+        for fault in now:
+            self._fire(fault)
+
+    def _claim_watches(self, targets):
+        """``{target index: [(distance into that block, fault)]}`` for the ``kind@N+F`` faults of
+        the line being started (``_executing_seq``): F of the line's whole path length."""
+        faults = self.faults.fractions(self._executing_seq) if self._executing_seq else []
+        if not faults:
+            return {}
+        prev = self.motion.blocks[-1].target if self.motion.blocks else tuple(self.motion.position)
+        lengths = []
+        for target in targets:
+            lengths.append(math.dist(prev, target))
+            prev = target
+        total = sum(x for x in lengths if x > 1e-9)
+        watches = {}
+        for fault in faults:
+            if total <= 1e-9:
+                self._fire_now.append(fault)
+                continue
+            d, before = fault.fraction * total, 0.0
+            for i, length in enumerate(lengths):
+                if length > 1e-9 and d <= before + length + 1e-12:
+                    watches.setdefault(i, []).append((d - before, fault))
+                    break
+                before += length if length > 1e-9 else 0.0
+        for w in watches.values():
+            w.sort(key=lambda x: x[0])
+        return watches
+
     def _start_task(self, result, silent):
         """Run a line's result: an immediate response, or a task generator."""
         if hasattr(result, "send"):
@@ -269,12 +410,15 @@ class GcodeFirmware(Emulator):
 
     def _queue_task(self, targets, *, rapid, feed, inverse=False, line_number=0, kind="line"):
         """Queue blocks to ``targets`` as the planner makes room."""
-        for target in targets:
+        watches = self._claim_watches(targets)
+        for i, target in enumerate(targets):
             while self.motion.free <= 0:
                 yield lambda: self.motion.free > 0
             start = self.motion.blocks[-1].target if self.motion.blocks else tuple(self.motion.position)
-            if self.motion.add(start, target, rapid=rapid, feed=feed, inverse_time=inverse,
-                               line_number=line_number, kind=kind) is not None:
+            block = self.motion.add(start, target, rapid=rapid, feed=feed, inverse_time=inverse,
+                                    line_number=line_number, kind=kind)
+            if block is not None:
+                block.watch = watches.get(i)
                 self._motion_queued(kind)
         return 0
 

@@ -12,9 +12,12 @@ blocks and ``ok`` is withheld while it is full.
 The firmware's *belief* (machine position, offsets, modal state, alarm) is
 kept apart from the physical axes in :class:`~firmware_protocol.world.World`:
 ``physical = belief + offset`` for the ring and head axes.  A soft reset
-(0x18) keeps the machine position (GRBL keeps its step counters; ALARM:3 when
-it was moving); a brown-out (``reset`` fault) or a power loss wipes it, so the
-position reads 0 wherever the axes stand.  ``$H`` moves the head to
+(0x18, ``$RST=``, a ``reset`` fault) keeps the machine position (GRBL keeps its
+step counters) and goes as GRBL's ``mc_reset`` and main loop go: motion stops
+dead; if it was moving, ``ALARM:3`` and a 0.5 s pause (``report_alarm_message``)
+in which everything the host sends is lost; then ``ok`` for a line that was
+waiting in the main loop (planner full, a dwell or sync), then the banner.  A
+reboot or a power loss wipes the position, so it reads 0 wherever the axes stand.  ``$H`` moves the head to
 ``head.in_mm`` and then the ring to the nearest whole turn (physical), and
 sets belief = physical.
 """
@@ -25,13 +28,15 @@ import logging
 from ..grbl import UNLOCK_MESSAGE
 from .gcode_base import EPS, GcodeFirmware, Power, physical_home
 from .grbl_parser import GrblError, GrblParser, fmt
-from .grbl_system import GRBL, GRBLHAL, default_settings, format_settings, store_setting
+from .grbl_system import GRBL, GRBLHAL, build_steps, default_settings, format_settings, store_setting
 
 __all__ = ["GrblState", "GrblEmulator", "GrblHalEmulator", "physical_home", "Power"]
 
 log = logging.getLogger(__name__)
 
 _EPS = EPS
+#: GRBL's ``delay_ms(500)`` after printing an alarm: the main loop is stopped that long.
+ALARM_PAUSE_SECONDS = 0.5
 
 
 class GrblState(enum.Enum):
@@ -77,31 +82,37 @@ class GrblEmulator(GcodeFirmware):
         The physical machine (one is made from ``machine`` if not given).
     faults : str or list of Fault, optional
         See :mod:`firmware_protocol.faults`.
+    presets : list of firmware_protocol.settings.Preset
+        Settings stored before power-up (``stringbot simulate --set '$100=40'``).
     """
 
     variant = GRBL
 
-    def __init__(self, machine, *, world=None, faults=None):
+    def __init__(self, machine, *, world=None, faults=None, presets=()):
         self.base_axes = self.variant.base_axes
         super().__init__(machine, world=world, faults=faults, planner_blocks=self.variant.planner_blocks)
         self.settings = default_settings(self.variant, self.axes, machine)
+        self.build_steps = dict(zip((self.ring_i, self.head_i), build_steps(machine)))
         self.apply_settings()
         self.user_string = ""
         self.startup_lines = ["", ""]
         self.parser = GrblParser(self.axes)
         self.apply_settings()
+        for preset in presets:          # settings it was left with, before this power-up
+            self.preset(preset)
         self.state = GrblState.IDLE
         self._raw = bytearray()
         self._wco_counter = self._ovr_counter = 0
         self._jog_cancelling = False
         self.after_response = None
+        self._reset_at = None          # (virtual time the alarm pause ends, stray ok owed)
         self._boot(wipe=True, alarm=False)
 
     # ---- the Emulator interface -------------------------------------------------------------
     def receive(self, data):
-        if self.power is not Power.ON or not self.port_up:
-            return
         for c in bytes(data):
+            if self.power is not Power.ON or not self.port_up or self._reset_at is not None:
+                return                  # nobody hears it: off, booting, or pausing after an alarm
             if c in (0x3F, 0x21, 0x7E, 0x18):
                 self._pump()
                 self._realtime(c)
@@ -118,7 +129,15 @@ class GrblEmulator(GcodeFirmware):
                 self.dropped_bytes += 1
         self._pump()
 
+    def _event_times(self):
+        times = super()._event_times()
+        if self._reset_at is not None:
+            times.append(max(self._reset_at[0] - self.now, 0.0))
+        return times
+
     def _after_run(self):
+        if self._reset_at is not None and self.now >= self._reset_at[0] - _EPS:
+            self._finish_reset(self._reset_at[1], alarm=True)
         self._update_state()
 
     def _update_state(self):
@@ -163,18 +182,35 @@ class GrblEmulator(GcodeFirmware):
             self._out += b"\r\n" + self.variant.banner.encode("ascii") + b"\r\n"
 
     def _soft_reset(self):
+        """``mc_reset``: stop dead keeping the position; ALARM:3 (6 when homing) and the pause if
+        moving; a line waiting in the main loop is answered ``ok`` before the banner."""
+        if self._reset_at is not None:
+            return                      # GRBL sets its reset flag once
         moving = self.state in (GrblState.RUN, GrblState.JOG, GrblState.HOME) or (
             self.state is GrblState.HOLD and not self.motion.hold_complete)
-        if moving:
-            self._emit("ALARM:6" if self.state is GrblState.HOME else "ALARM:3")
-        self._boot(wipe=False, alarm=moving)
+        stray = self._task is not None and not self._task[2]
+        self.motion.clear()
+        self._task, self._timer = None, None
+        self._jog_cancelling = False
+        if not moving:
+            self._finish_reset(stray, alarm=False)
+            return
+        log.info("reset while moving: alarm, %.1f s pause", ALARM_PAUSE_SECONDS)
+        self._emit("ALARM:6" if self.state is GrblState.HOME else "ALARM:3")
+        self.state = GrblState.ALARM
+        self._reset_at = (self.now + ALARM_PAUSE_SECONDS, stray)
 
-    def _brownout(self):
-        moving = self.motion.moving or self.state is GrblState.HOME
-        log.info("fault: firmware reset (moving=%s)", moving)
-        if moving:
-            self._emit("ALARM:3")
-        self._boot(wipe=True, alarm=moving)
+    def _finish_reset(self, stray, *, alarm):
+        self._reset_at = None
+        if stray:
+            self._respond(0)
+        self._boot(wipe=False, alarm=alarm)
+
+    def _fault_reset(self):
+        self._soft_reset()
+
+    def _stop_resets(self):
+        self._reset_at = None
 
     def _clear_input(self):
         self._raw.clear()
@@ -186,7 +222,7 @@ class GrblEmulator(GcodeFirmware):
     # ---- the main loop --------------------------------------------------------------------------------
     def _pump(self):
         """Run GRBL's main loop until it blocks or runs out of input."""
-        while self.power is not Power.OFF:
+        while self.running and self._reset_at is None:
             if not self._step_task():
                 return
             if not self._rx:
@@ -209,9 +245,13 @@ class GrblEmulator(GcodeFirmware):
             log.info("fault: line %r rejected", bytes(raw))
             self._respond(20, silent)
             return
+        if "ignore" in kinds:
+            log.info("fault: line %r acknowledged, not executed", bytes(raw))
+            self._respond(0, silent)
+            return
         text, overflow = clean_line(raw, 80)
         result = self._execute(text, overflow)
-        self._start_task(result, silent)
+        self._start_line(result, silent, self.faults.lines)
         if self.after_response is not None:
             then, self.after_response = self.after_response, None
             then()
@@ -381,10 +421,26 @@ class GrblEmulator(GcodeFirmware):
         return [self.settings[120 + i] for i in range(len(self.axes))]
 
     def apply_settings(self):
-        """Axis rates and accelerations take effect for the blocks planned next."""
+        """Axis rates and accelerations take effect for the blocks planned next; steps per unit
+        at once (the position GRBL reports moves, the motors do not)."""
         self.motion.rates, self.motion.accels = self._rates(), self._accels()
+        for i, build in self.build_steps.items():
+            old = self.step_scale[i]
+            self._set_step_scale(i, self.settings[100 + i] / build, keep_steps=True)
+            if hasattr(self, "parser") and old != self.step_scale[i]:
+                self.parser.position[i] *= old / self.step_scale[i]
         if hasattr(self, "parser"):
             self.parser.arc_tolerance = self.settings[12]
+
+    def preset(self, preset):
+        """Start with a setting of ``--set`` (a :class:`~firmware_protocol.settings.Preset` of
+        ``(N, value)``), stored as ``$N=value`` would; ValueError with GRBL's words if refused."""
+        key, value = preset.value
+        code = self.store_setting(key, value)
+        if code:
+            from ..grbl import describe_error
+            raise ValueError(f"--set {preset.text!r}: the firmware answers error:{code} "
+                             f"({describe_error(code)})")
 
     def format_settings(self):
         return format_settings(self.settings)

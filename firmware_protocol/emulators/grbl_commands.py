@@ -107,7 +107,7 @@ def _setting(emu, text):
         v = float(value)
     except ValueError:
         return 2
-    if k != int(k) or k > 255:
+    if k != int(k) or (k > 255 and int(k) not in emu.settings):   # grblHAL numbers past 255
         return 3
     return emu.store_setting(int(k), v)
 

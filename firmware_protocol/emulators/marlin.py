@@ -21,6 +21,7 @@ from collections import deque
 
 from .. import marlin as mc
 from .gcode_base import EPS, GcodeFirmware, Power
+from .marlin_settings import MarlinSettingsMixin
 from .motion import arc_points
 
 __all__ = ["MarlinEmulator", "MarlinState"]
@@ -41,33 +42,17 @@ def _strtol(text):
     return int(m.group(1)) if m else 0
 
 
-class MarlinEmulator(GcodeFirmware):
+class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
     """Marlin 2.1 on a virtual clock, driving ``world``; axes X Y Z plus the machine's rotary ``A``."""
 
     EOL = b"\n"
     base_axes = "XYZ"
 
-    def __init__(self, machine, *, world=None, faults=None):
-        ring, head = machine["controller.ring_axis"], machine["controller.head_axis"]
-        rates, accels, self.steps = [], [], []
-        for a in "XYZABC":
-            if a in self.base_axes or a in (ring, head):
-                if a == ring:
-                    rates.append(machine["ring.feed_deg_per_min"])
-                    accels.append(machine["ring.accel_deg_per_s2"])
-                    self.steps.append(machine.values.get("ring.steps_per_deg") or 80.0)
-                elif a == head:
-                    rates.append(machine["head.feed_mm_per_min"])
-                    accels.append(machine["head.accel_mm_per_s2"])
-                    self.steps.append(80.0)
-                else:
-                    rates.append(300.0 * 60 if a != "Z" else 5.0 * 60)
-                    accels.append(3000.0 if a != "Z" else 100.0)
-                    self.steps.append(80.0 if a != "Z" else 400.0)
-        super().__init__(machine, world=world, faults=faults, planner_blocks=mc.PLANNER_BLOCKS,
-                         rates=rates, accels=accels)
+    def __init__(self, machine, *, world=None, faults=None, presets=()):
+        super().__init__(machine, world=world, faults=faults, planner_blocks=mc.PLANNER_BLOCKS)
+        self._init_settings(presets)        # steps, feeds, accelerations, endstops: marlin_settings
         self.state = MarlinState.READY
-        self.queue = deque()          # (command, silent) checked and waiting to run
+        self.queue = deque()          # (command, silent, line count, ignore) checked, waiting to run
         self._raw = bytearray()
         self._busy_at = None          # next keepalive while a command blocks
         self._boot(wipe=True)
@@ -96,7 +81,7 @@ class MarlinEmulator(GcodeFirmware):
 
     # ---- the main loop ------------------------------------------------------------------------------
     def _pump(self):
-        while self.power is not Power.OFF and self.state is MarlinState.READY:
+        while self.running and self.state is MarlinState.READY:
             while len(self.queue) < mc.BUFSIZE and self._rx:
                 c = self._rx.pop(0)
                 if c in (0x0A, 0x0D):
@@ -113,8 +98,12 @@ class MarlinEmulator(GcodeFirmware):
             self._busy_at = None
             if not self.queue:
                 return
-            command, silent = self.queue.popleft()
-            self._start_task(self._command(command), silent)
+            command, silent, seq, ignore = self.queue.popleft()
+            if ignore:
+                log.info("fault: %r acknowledged, not executed", command)
+                self._respond(0, silent)
+                continue
+            self._start_line(self._command(command), silent, seq)
 
     def _line(self, raw):
         got = self._line_faults(raw)
@@ -148,7 +137,7 @@ class MarlinEmulator(GcodeFirmware):
                 self._line_error(mc.ERR_CHECKSUM_MISMATCH)
                 return
             self.last_n = n
-        self.queue.append((command, "drop-ok" in kinds))
+        self.queue.append((command, "drop-ok" in kinds, self.faults.lines, "ignore" in kinds))
 
     def _line_error(self, message):
         self._emit(f"Error:{message}{self.last_n}")
@@ -202,6 +191,7 @@ class MarlinEmulator(GcodeFirmware):
             if p.get(axis) is not None:
                 value = p[axis] * self.scale
                 target[i] = target[i] + value if self.relative else value - self.shift[i]
+        target = self._soft_limited(target)
         if target == self._planned():
             return 0
         return self._queue_task([tuple(target)], rapid=False, feed=self.feed)
@@ -320,7 +310,7 @@ class MarlinEmulator(GcodeFirmware):
         self._emit(f"FIRMWARE_NAME:Marlin {mc.VERSION} (Jul 11 2023 12:00:00) SOURCE_CODE_URL:github.com/"
                    f"MarlinFirmware/Marlin PROTOCOL_VERSION:1.0 MACHINE_TYPE:{self.machine.name} "
                    f"EXTRUDER_COUNT:0 AXIS_COUNT:{len(self.axes)} UUID:cede2a2f-41a2-4748-9b12-c55c62f367ff")
-        for cap in ("SERIAL_XON_XOFF:0", "BINARY_FILE_TRANSFER:0", "EEPROM:0", "AUTOREPORT_POS:0",
+        for cap in ("SERIAL_XON_XOFF:0", "BINARY_FILE_TRANSFER:0", "EEPROM:1", "AUTOREPORT_POS:0",
                     "AUTOREPORT_TEMP:0", "PROGRESS:0", "PRINT_JOB:1", "EMERGENCY_PARSER:0",
                     "HOST_ACTION_COMMANDS:0"):
             self._emit(f"Cap:{cap}")
@@ -353,7 +343,7 @@ class MarlinEmulator(GcodeFirmware):
         for line in (mc.START, f"echo:Marlin {mc.VERSION}",
                      "echo: Last Updated: 2023-07-11 | Author: (stringbot simulator)",
                      "echo:Compiled: Jul 11 2023", "echo: Free Memory: 4821  PlannerBufferBytes: 1232",
-                     "echo:Hardcoded Default Settings Loaded"):
+                     self._load_at_boot()):
             self._emit(line)
 
     def _clear_input(self):
@@ -361,8 +351,4 @@ class MarlinEmulator(GcodeFirmware):
         self.queue.clear()
 
     def _power_on(self):
-        self._boot(wipe=True)
-
-    def _brownout(self):
-        log.info("fault: firmware reset (moving=%s)", self.motion.moving)
         self._boot(wipe=True)

@@ -60,6 +60,22 @@ class Profile:
             accel = v0 / t if t > 0 else accel
         return cls([(t, s0, v0, -accel)])
 
+    def time_at(self, s):
+        """Time into the profile at which distance ``s`` is reached (None: never)."""
+        elapsed = 0.0
+        for dur, s0, v, a in self.pieces:
+            s_end = s0 + v * dur + 0.5 * a * dur * dur
+            if s <= s_end + _EPS:
+                d = max(s - s0, 0.0)
+                if abs(a) < _EPS:
+                    t = d / v if v > _EPS else 0.0
+                else:
+                    disc = max(v * v + 2 * a * d, 0.0)
+                    t = (-v + math.sqrt(disc)) / a
+                return elapsed + min(max(t, 0.0), dur)
+            elapsed += dur
+        return None
+
     def at(self, t):
         """(distance, speed) at time ``t`` into the profile."""
         for dur, s, v, a in self.pieces:
@@ -88,6 +104,7 @@ class Block:
     v: float = 0.0        # current speed
     t: float = 0.0        # time into the current profile
     profile: Profile = None
+    watch: list = None    # [(distance along the block, tag)] to report once reached (sorted)
 
     def point(self, s):
         f = s / self.length if self.length else 1.0
@@ -210,11 +227,33 @@ class MotionQueue:
 
     # ---- time -----------------------------------------------------------------------------
     def time_to_event(self):
-        """Seconds until the running block ends or the hold comes to rest; None when nothing moves."""
+        """Seconds until the running block ends, the hold comes to rest or a watched distance is
+        reached; None when nothing moves."""
         if not self.moving:
             return None
         b = self.current
-        return max(b.profile.duration - b.t, 0.0)
+        left = max(b.profile.duration - b.t, 0.0)
+        if b.watch:
+            t = b.profile.time_at(b.watch[0][0])
+            if t is not None:
+                left = min(left, max(t - b.t, 0.0))
+        return left
+
+    @staticmethod
+    def _due(b, s):
+        t = b.profile.time_at(s) if b.profile is not None else None
+        return t is not None and t <= b.t + 1e-12
+
+    def reached(self, done=()):
+        """Tags of the watched distances passed: on the blocks ``done`` and the running one."""
+        tags = []
+        for b in done:
+            tags += [tag for _s, tag in b.watch or ()]
+            b.watch = None
+        b = self.current
+        while b is not None and b.watch and (b.s >= b.watch[0][0] - 1e-9 or self._due(b, b.watch[0][0])):
+            tags.append(b.watch.pop(0)[1])
+        return tags
 
     def run(self, dt):
         """Advance by ``dt`` seconds; returns the blocks finished (in order).

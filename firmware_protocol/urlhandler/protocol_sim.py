@@ -2,12 +2,16 @@
 
 URL form::
 
-    sim://[?machine=NAME|PATH][&record=FILE][&realtime=0|1][&faults=kind@N,...]
+    sim://[?machine=NAME|PATH][&record=FILE][&realtime=0|1][&faults=kind@N,...][&set=SETTING]...
 
 ``machine`` is a bundled machine name or a machine file (default
 ``grbl-ring``); ``record`` the world's JSON record; ``realtime=1`` runs the
 firmware's clock at wall-clock speed (default: as fast as possible, in
-order); ``faults`` as in :mod:`firmware_protocol.faults`.
+order); ``faults`` as in :mod:`firmware_protocol.faults`; ``set`` (any
+number of times) a firmware setting the machine starts with instead of the
+machine file's (``set=$100=40``, ``set=M92+A40``, ``set=ring:Drive+Mode=1``;
+:func:`firmware_protocol.settings.parse_preset`), to practise on a mis-set
+machine.
 
 Writes go straight to the emulator.  A read that finds nothing ready runs the
 virtual clock to the next event (fast mode) or sleeps (realtime mode) until
@@ -22,6 +26,7 @@ emulator and world) is kept per URL for the life of the process;
 e.g. a fresh ``record`` file).
 """
 
+import atexit
 import logging
 import threading
 import time
@@ -34,7 +39,8 @@ __all__ = ["Serial", "FORM", "parse_url", "session", "forget", "tie_on"]
 
 log = logging.getLogger(__name__)
 
-FORM = 'expected a string in the form "sim://[?machine=NAME][&record=FILE][&realtime=0|1][&faults=kind@N,...]"'
+FORM = ('expected a string in the form '
+        '"sim://[?machine=NAME][&record=FILE][&realtime=0|1][&faults=kind@N,...][&set=SETTING]..."')
 
 _SESSIONS = {}
 _LOCK = threading.Lock()
@@ -47,6 +53,13 @@ class _Session:
         self.emulator, self.world, self.realtime = emulator, world, realtime
         self.wall = time.monotonic()
         self.lock = threading.RLock()
+
+    def close(self):
+        with self.lock:
+            try:
+                self.emulator.close()
+            except OSError as exc:          # a record folder removed meanwhile: nothing to keep
+                log.warning("sim: could not write the record: %s", exc)
 
     def sync(self):
         """Realtime mode: bring the virtual clock up to the wall clock."""
@@ -76,12 +89,17 @@ def parse_url(url):
         raise SerialException(f"{FORM}: not starting with sim:// ({parts.scheme!r})")
     if parts.netloc or parts.path not in ("", "/"):
         raise SerialException(f"{FORM}: unexpected {parts.netloc + parts.path!r} before the '?'")
-    opts = {"machine": "grbl-ring", "record": None, "realtime": False, "faults": ""}
+    opts = {"machine": "grbl-ring", "record": None, "realtime": False, "faults": "", "set": []}
     try:
         query = urllib.parse.parse_qs(parts.query, keep_blank_values=True, strict_parsing=bool(parts.query))
     except ValueError as exc:
         raise SerialException(f"{FORM}: {exc}") from None
     for option, values in query.items():
+        if option == "set":
+            if not all(values):
+                raise SerialException(f"{FORM}: set is empty")
+            opts["set"] = list(values)
+            continue
         if len(values) != 1:
             raise SerialException(f"{FORM}: option {option!r} given {len(values)} times")
         value = values[0]
@@ -118,13 +136,18 @@ def session(url):
             machine = load_machine(opts["machine"])
             if machine["controller.kind"] == "gcode":
                 parse_faults(opts["faults"])
-            emulator, world = build_emulator(machine, record=opts["record"], faults=opts["faults"] or None)
+            emulator, world = build_emulator(machine, record=opts["record"], faults=opts["faults"] or None,
+                                             settings=opts["set"])
         except ValueError as exc:        # MachineFileError, SimulatorError, bad faults
             kind = "machine" if isinstance(exc, (MachineFileError, SimulatorError)) else "faults"
+            if str(exc).startswith("--set "):
+                kind, exc = "set", str(exc)[len("--set "):]
             raise SerialException(f"{FORM}: {kind}: {exc}") from None
         except OSError as exc:
             raise SerialException(f"{FORM}: record: {exc}") from None
         s = _Session(emulator, world, opts["realtime"])
+        if not _SESSIONS:
+            atexit.register(_close_all)
         _SESSIONS[url] = s
         log.info("sim: new %s machine for %s", machine.name, url)
         return s
@@ -142,12 +165,23 @@ def tie_on(url, color, pin=None):
 
 
 def forget(url=None):
-    """Drop the simulated machine of ``url`` (all of them if None)."""
+    """Drop the simulated machine of ``url`` (all of them if None); its record is written first."""
     with _LOCK:
+        gone = list(_SESSIONS.values()) if url is None else [s for s in [_SESSIONS.get(url)] if s]
         if url is None:
             _SESSIONS.clear()
         else:
             _SESSIONS.pop(url, None)
+    for s in gone:
+        s.close()
+
+
+def _close_all():
+    """At exit: every simulated machine writes its record (the simulator exits with the process)."""
+    with _LOCK:
+        sessions = list(_SESSIONS.values())
+    for s in sessions:
+        s.close()
 
 
 class Serial(SerialBase):
@@ -172,6 +206,7 @@ class Serial(SerialBase):
         with self._session.lock:
             self._session.sync()
             self._session.bring_port_up()
+            self._session.emulator.port_opened()    # an Uno resets on DTR (reset_on_open)
         self._in.clear()
         self._dropped = False
         self.is_open = True
@@ -179,6 +214,12 @@ class Serial(SerialBase):
     def close(self):
         self.is_open = False
         self._in.clear()
+        if self._session is not None:
+            with self._session.lock:
+                try:
+                    self._session.world.flush()      # the record is current once the port is closed
+                except OSError as exc:
+                    log.warning("sim: could not write the record: %s", exc)
         self._session = None
 
     def from_url(self, url):
@@ -238,6 +279,8 @@ class Serial(SerialBase):
                     continue
             if self._timeout == 0 or timeout.expired():
                 break
+            with s.lock:
+                s.emulator.idle()           # waiting in wall time: the record catches up if at rest
             wait = 0.005 if nxt is None else min(max(nxt, 0.0005), 0.02)
             left = timeout.time_left()
             time.sleep(wait if left is None else max(min(wait, left), 0.0))

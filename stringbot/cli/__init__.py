@@ -64,3 +64,4 @@ def main(argv=None):
 # each area's commands register themselves on `cli` when imported
 from . import machines, planning, winding  # noqa: E402,F401
 from . import maker  # noqa: E402,F401  (template, pins, animate)
+from . import checking  # noqa: E402,F401  (machines check)

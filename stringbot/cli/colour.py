@@ -10,7 +10,7 @@ from ..errors import BadInput
 
 #: ``plan`` options that are knobs of the mono planner: refused with ``--colors``.
 MONO_ONLY = ("method", "disconnected", "importance", "gray", "alpha", "style", "beta", "gamma", "T", "epsilon",
-             "iterations")
+             "iterations", "refine", "fit")
 
 
 def colour_names(colors):
@@ -20,18 +20,17 @@ def colour_names(colors):
 
 
 def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, machine, frame, crop, start_pin,
-                    size, lines, no_cache, given):
+                    size, lines, no_cache, given, model, force=False):
     """``stringbot plan IMAGE --colors ...``: the colour planner, its plan and its preview as woven."""
     import os
 
-    from .._files import check_not_same_file, check_output_path, write_atomic
+    from .._files import check_not_same_file, check_output_path, write_all_atomic
     from ..planner.colour_build import plan_colour
     from ..planner.colour_render import plan_layers, woven_rgb
     from ..planner.image import parse_crop
     from ..planner.palette import WHITE, parse_background, parse_colors
-    from ..planner.plan_file import write_plan
     from ..planner.progress import reporting
-    from ..planner.thread import ThreadModel
+    from .planning import _refuse_a_wound_plan
     from .progress import PlanProgress
 
     mono = [f"--{name.replace('_', '-')}" if name != "T" else "-T" for name in MONO_ONLY if name in given]
@@ -46,25 +45,24 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     for out, what in ((output, "plan"), (preview, "preview")):
         check_not_same_file(out, image, what=what, source_what="picture")
     check_not_same_file(preview, output, what="preview", source_what="plan")
+    if not force:
+        _refuse_a_wound_plan(output)
     if lines != "auto" and lines <= 0:
         raise BadInput(f"--lines {lines}; expected a positive number or auto")
-    model = ThreadModel()
-    if mach is not None:
-        model = ThreadModel(diameter_mm=mach["ring.diameter_mm"], thread_mm=mach["thread.diameter_mm"])
     shown = PlanProgress().start()
     try:
         with reporting(shown):
-            p = plan_colour(image, colors=palette, background=board, pins=pins, frame=frame, size=size,
+            p = plan_colour(image, colors=palette, background=board, pins=pins, frame=frame,
+                            size=401 if size is None else size,
                             crop=parse_crop(crop) if crop else None, lines=lines,
-                            start_pin=start_pin if "start_pin" in given else None, model=model,
+                            start_pin=start_pin, model=model,
                             cache=not no_cache)
     finally:
         shown.close()
     if machine is not None:
         p.parameters["machine"] = machine
     rgb = woven_rgb(plan_layers(p), p.pin_xy, background=p.background, size=1001, width=model.fraction)
-    write_plan(p, output)
-    write_atomic(preview, png_rgb_bytes(rgb))
+    write_all_atomic([(output, p.to_json(), "plan"), (preview, png_rgb_bytes(rgb), "preview")])  # both or neither
     s = p.stats
     per = ", ".join(f"{_short(lay['color'])} {lay['lines']}" for lay in s["layers"])
     thread = f"{s['thread_diameters']:.1f} diameters"
@@ -117,20 +115,10 @@ def render_colour(plan, output, size):
     from .._files import write_atomic
     from ..planner.colour_render import plan_layers, woven_rgb
 
-    width = _width(plan)
     write_atomic(output, png_rgb_bytes(woven_rgb(plan_layers(plan), plan.pin_xy, background=plan.background,
-                                                 size=size, width=width)))
+                                                 size=size, width=plan.thread_model().fraction)), what="drawing")
     click.echo(f"{len(plan.chord_list())} chords in {len(plan.colors)} layers drawn as woven at {size} x {size} "
                f"-> {output}")
-
-
-def _width(plan):
-    from ..planner.thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM
-
-    d = plan.parameters.get("diameter_mm", DEFAULT_DIAMETER_MM)
-    t = plan.parameters.get("thread_mm", DEFAULT_THREAD_MM)
-    ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in (d, t)) and t < d
-    return t / d if ok else DEFAULT_THREAD_MM / DEFAULT_DIAMETER_MM
 
 
 def score_colour(plan, plan_path, image):
@@ -140,4 +128,4 @@ def score_colour(plan, plan_path, image):
 
     pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
     return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background,
-                        width=_width(plan))
+                        width=plan.thread_model().fraction)

@@ -21,7 +21,7 @@ def _emit(output, data, *, what, source=None):
     check_output_path(output, what=what)
     if source is not None:
         check_not_same_file(output, source, what=what, source_what="plan")
-    write_atomic(output, data)
+    write_atomic(output, data, what=what)
 
 
 def _frame_size(plan, diameter_mm, machine):
@@ -87,6 +87,8 @@ def template_cmd(machine, pins, diameter_mm, pin_diameter_mm, output, paper):
         raise BadInput("expected --machine NAME, or both --pins N and --diameter-mm D")
     pin_diameter_mm = 1.5 if pin_diameter_mm is None else pin_diameter_mm
     kw = dict(pins=pins, diameter_mm=diameter_mm, pin_diameter_mm=pin_diameter_mm, name=name)
+    from .._files import check_output_path
+    check_output_path(output, what="template")
     data = template_svg(**kw) if ext == ".svg" else template_pdf(paper=paper, **kw)
     _emit(output, data, what="template")
     pages = ""
@@ -113,9 +115,13 @@ def pins_cmd(plan, output, diameter_mm, machine):
     from ..motion.pins import format_csv, format_txt, pin_list
     from ..planner.plan_file import read_plan
 
+    from .._files import check_not_same_file, check_output_path
+
     ext = os.path.splitext(output)[1].lower() if output != "-" else ".txt"
     if ext not in (".txt", ".csv"):
         raise BadInput(f"-o {output!r}; expected a file name ending in .txt or .csv, or - for standard output")
+    check_output_path(output, what="pin list", allow_stdout=True)      # before the work
+    check_not_same_file(output, plan, what="pin list", source_what="plan")
     p = read_plan(plan)
     from ..planner.plan_file import require_one_layer
     require_one_layer(p, "stringbot pins")

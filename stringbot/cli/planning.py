@@ -28,21 +28,32 @@ class _Lines(click.ParamType):
               help="Plan file to write (JSON).")
 @click.option("--preview", type=click.Path(path_type=str), default=None,
               help="Preview PNG to write [default: the plan's path with .png].")
-@click.option("--method", type=click.Choice(["fitness", "greedy"]), default="fitness", show_default=True,
-              help="fitness: the paper's method; greedy: the ThreadTone baseline.")
+@click.option("--method", type=click.Choice(["residual", "fitness", "greedy"]), default="residual",
+              show_default=True,
+              help="residual: chords chosen by what the picture as woven still lacks, then refined; fitness: the "
+                   "paper's method; greedy: ThreadTone as published.")
 @click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
 @click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
-@click.option("--machine", default=None, help="Take the pin count from this machine (name or TOML path).")
+@click.option("--machine", default=None,
+              help="Take the pin count, ring diameter and thread width from this machine (name or TOML path).")
+@click.option("--diameter-mm", type=float, default=None,
+              help="Diameter of the pin circle (side of a square frame) in mm [default: 500, or the machine's].")
+@click.option("--thread-mm", type=float, default=None,
+              help="Width of the thread in mm [default: 0.25, or the machine's].")
 @click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
-@click.option("--start-pin", type=int, default=0, show_default=True)
-@click.option("--size", type=int, default=401, show_default=True, help="Working size in pixels.")
+@click.option("--fit", is_flag=True, help="Paint the whole picture, letterboxed on the board, not its centre.")
+@click.option("--start-pin", type=int, default=None,
+              help="First pin (0 is at the top, numbered clockwise) [default: 0; greedy: pins / 4, ThreadTone's].")
+@click.option("--size", type=int, default=None, help="Working size in pixels [default: 401; greedy: 1001, ThreadTone's].")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
-              help="Chords to draw; auto: 500 + 10 (255 - mean gray).")
+              help="Chords to draw; auto: residual stops when another thread would not improve the picture as "
+                   "woven; fitness and greedy: 500 + 10 (255 - mean gray).")
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
-@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default="decolor", show_default=True,
-              help="Colour to gray: contrast-preserving decolorization or plain luminance.")
+@click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
+              help="Colour to gray: contrast-preserving decolorization or plain luminance "
+                   "[default: decolor; greedy: luminance, ThreadTone's].")
 @click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
 @click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default=None,
               help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "
@@ -53,22 +64,26 @@ class _Lines(click.ParamType):
               help="T of tanh(f / T): larger spreads chords out [detail: 30].")
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
+@click.option("--refine", type=int, default=300, show_default=True,
+              help="Residual: pins the refinement revisits (0: no refinement).")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
+@click.option("--force", is_flag=True,
+              help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
 @click.option("--colors", default=None, metavar="LIST|auto:N",
               help="Thread colours, one layer each: names or #rrggbb (black,crimson,#1f5bb5), or auto:N to pick N "
                    "from the picture; plans in colour (a version 2 plan).")
 @click.option("--background", default=None, metavar="white|black|#rrggbb",
               help="Colour of the board the threads are wound over [default: white]; plans in colour.")
-def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame, crop, start_pin, size, lines,
-             importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, no_cache, colors, background):
+def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
+             start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
+             no_cache, force, colors, background):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
-    from .._files import check_not_same_file, check_output_path, write_atomic
+    from .._files import check_not_same_file, check_output_path, write_all_atomic
     from ..planner.build import plan_picture
     from ..planner.image import parse_crop
-    from ..planner.plan_file import write_plan
-    from ..planner.render import draw, png_bytes
+    from ..planner.render import draw_woven, png_bytes
 
     mach = None
     if machine is not None:
@@ -78,8 +93,20 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
         ring = mach.pins
         if pins is not None and pins != ring:
             raise BadInput(f"--pins {pins} differs from machine {machine!r} with {ring} pins; give one of them")
+        if frame != "circle":
+            raise BadInput(f"--frame {frame} with machine {machine!r}, which winds a ring; expected --frame circle "
+                           "(or leave out --machine)")
         pins = ring
+        for option, given, key in (("--diameter-mm", diameter_mm, "ring.diameter_mm"),
+                                   ("--thread-mm", thread_mm, "thread.diameter_mm")):
+            if given is not None and given != mach[key]:
+                raise BadInput(f"{option} {given:g} differs from machine {machine!r} ({key} = {mach[key]:g}); "
+                               "give one of them")
+        diameter_mm, thread_mm = mach["ring.diameter_mm"], mach["thread.diameter_mm"]
     pins = 300 if pins is None else pins
+    from ..planner.build import thread_model
+
+    thread_model(diameter_mm, thread_mm)  # bad sizes are refused before any work
     if colors is not None or background is not None:
         from .colour import plan_colour_cmd
         ctx = click.get_current_context()
@@ -87,7 +114,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
                  if ctx.get_parameter_source(name) is click.core.ParameterSource.COMMANDLINE}
         return plan_colour_cmd(image=image, output=output, preview=preview, colors=colors, background=background,
                                pins=pins, mach=mach, machine=machine, frame=frame, crop=crop, start_pin=start_pin,
-                               size=size, lines=lines, no_cache=no_cache, given=given)
+                               size=size, lines=lines, no_cache=no_cache, given=given,
+                               model=thread_model(diameter_mm, thread_mm), force=force)
     preview = preview or os.path.splitext(output)[0] + ".png"
     check_output_path(output, what="plan")
     check_output_path(preview, what="preview")
@@ -96,6 +124,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
             if src:
                 check_not_same_file(out, src, what=what, source_what=name)
     check_not_same_file(preview, output, what="preview", source_what="plan")
+    if not force:
+        _refuse_a_wound_plan(output)
     if lines != "auto" and lines <= 0:
         raise BadInput(f"--lines {lines}; expected a positive number or auto")
     from ..planner.progress import reporting
@@ -107,14 +137,14 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
             p = plan_picture(image, pins=pins, frame=frame, size=size, crop=parse_crop(crop) if crop else None,
                              lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
                              importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
-                             T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache)
+                             T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
+                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine)
     finally:
         shown.close()
     if machine is not None:
         p.parameters["machine"] = machine
-    png = png_bytes(draw(p, size=1001))
-    write_plan(p, output)
-    write_atomic(preview, png)
+    png = png_bytes(draw_woven(p, size=1001))
+    write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
@@ -134,15 +164,35 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, frame,
                        f"{est.thread_m:.1f} m of thread")
 
 
+def _refuse_a_wound_plan(output):
+    """A plan whose journal has steps done is what a machine is (or was) winding: keep it."""
+    from ..winding.journal import journal_path_for, read_journal
+
+    journal = journal_path_for(output)
+    if not journal.is_file():
+        return
+    try:
+        state = read_journal(journal)
+    except BadInput:
+        return                         # not a journal we can read: nothing of ours to protect
+    if state.done:
+        where = "finished" if state.finished else f"{len(state.done)} of {state.steps_total} steps done"
+        raise BadInput(f"plan {output!r} has a winding journal {str(journal)!r} ({where}); overwriting the plan "
+                       "would orphan it: give another -o, or --force")
+
+
 @cli.command("render")
 @click.argument("plan", type=click.Path(path_type=str))
 @click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str), help="PNG to write.")
 @click.option("--size", type=int, default=1001, show_default=True, help="Side of the drawing in pixels.")
-def render_cmd(plan, output, size):
-    """Draw PLAN as black 1-pixel threads on white (a colour plan: as woven, in colour)."""
+@click.option("--binary", is_flag=True,
+              help="The paper's drawing (black 1-pixel lines) instead of the threads as woven.")
+def render_cmd(plan, output, size, binary):
+    """Draw PLAN as woven: its threads at their real width (the plan's thread_mm on diameter_mm); a colour
+    plan in its colours, layer on layer."""
     from .._files import check_not_same_file, check_output_path, write_atomic
     from ..planner.plan_file import read_plan
-    from ..planner.render import draw, png_bytes
+    from ..planner.render import draw, draw_woven, png_bytes
 
     if not 16 <= size <= 8001:
         raise BadInput(f"--size {size}; expected 16..8001 pixels")
@@ -151,9 +201,13 @@ def render_cmd(plan, output, size):
     p = read_plan(plan)
     if not p.is_mono:
         from .colour import render_colour
+        if binary:
+            raise BadInput(f"--binary draws one black thread, but plan {plan!r} has {len(p.colors)} colour "
+                           "layer(s); expected no --binary with a colour plan (it is drawn as woven)")
         return render_colour(p, output, size)
-    write_atomic(output, png_bytes(draw(p, size=size)))
-    click.echo(f"{len(p.chord_list())} chords drawn at {size} x {size} -> {output}")
+    write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
+    how = "as 1-pixel lines" if binary else f"as woven ({p.thread_mm:g} mm thread on {p.diameter_mm:g} mm)"
+    click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
 
 
 @cli.command("score")

@@ -5,6 +5,7 @@ import sys
 import click
 
 from ..errors import BadInput, Interrupted, MachineFailure
+from ..links.settings_check import SettingsDisagree
 from . import cli
 from .progress import fmt_s as _fmt_s
 
@@ -41,8 +42,10 @@ def _resume_command(plan, machine_name, port, journal):
 @click.option("--progress-every", type=click.FloatRange(min=0.1), default=None, metavar="SECONDS",
               help="Print a progress line (step, pin, elapsed, ETA) this often instead of the bar "
                    "[default: the bar on a terminal, otherwise a line every 30 s].")
+@click.option("--no-check", "no_check", is_flag=True,
+              help="Do not compare the firmware's settings with the machine file before the first move.")
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
-         faults, realtime, progress_every):
+         faults, realtime, progress_every, no_check):
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
     from ..winding import dry_run_problem, load_job, wind_plan
     from ..winding import resume as resuming
@@ -75,7 +78,12 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
                                           confirm=None if yes else confirm,
                                           choose=None if yes else choose, progress=progress)
         else:
-            result = wind_plan(job, confirm=None if yes else confirm, progress=progress)
+            result = wind_plan(job, confirm=None if yes else confirm, progress=progress, check=not no_check)
+    except SettingsDisagree as exc:     # nothing moved: no resume to offer
+        from .checking import refusal_lines
+        for line in refusal_lines(exc, machine_name, port):
+            click.echo(f"stringbot: error: {line}", err=True)
+        sys.exit(1)
     except (Interrupted, MachineFailure) as exc:
         if port is None:
             raise  # a dry run cannot be resumed (its simulated machine ends with the command)
@@ -109,21 +117,31 @@ def _summary(result, machine):
 @click.option("--record", default=None, type=click.Path(dir_okay=False),
               help="Write the world's record (wraps, collisions) to this JSON file.")
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
-@click.option("--faults", default=None, help="Faults to inject: kind@N,... (disconnect, reset, power, "
-                                             "garble, drop-ok, error; N counts received lines).")
-def simulate(machine_name, pty_path, record, realtime, faults):
+@click.option("--faults", default=None, help="Faults to inject, a comma list: kind@N (as line N arrives), "
+                                             "kind@N+F (F of line N's move done), kind@t=SECONDS, kind@N..M; "
+                                             "kinds reset, reboot, power, disconnect, garble, drop-ok, error, "
+                                             "ignore (docs/simulator.md).")
+@click.option("--set", "settings", multiple=True, metavar="SETTING",
+              help="Start the firmware with this setting instead of the machine file's (repeatable): "
+                   "'$100=40' (GRBL, grblHAL), 'M92 A40' (Marlin), 'ring:Drive Mode=1' (Dynamixel ID:ITEM=VALUE).")
+def simulate(machine_name, pty_path, record, realtime, faults, settings):
     """Serve the simulated machine on a pseudo-terminal until Ctrl-C."""
     from firmware_protocol.emulators.factory import build_emulator
     from firmware_protocol.machine import load_machine
     from firmware_protocol.pty import PtyPathError, PtyServer, check_pty_path
     machine = load_machine(machine_name)
+    if record is not None:
+        from .._files import check_output_path
+        check_output_path(record, what="--record")
     try:
         check_pty_path(pty_path)            # before the record file is written
     except PtyPathError as exc:
         raise BadInput(f"--pty: {exc}") from None
     try:
-        emulator, _world = build_emulator(machine, record=record, faults=faults)
+        emulator, _world = build_emulator(machine, record=record, faults=faults, settings=settings)
     except ValueError as exc:
+        if str(exc).startswith("--set "):
+            raise BadInput(str(exc)) from None
         raise BadInput(f"--faults {faults!r}: {exc}") from None
     except OSError as exc:
         raise BadInput(f"--record {record!r}: {exc.strerror or exc}") from None

@@ -25,12 +25,12 @@ __all__ = ["open_port", "sim_url", "gcode_link", "open_link", "GcodeMachineLink"
 def gcode_link(port, machine, **options):
     """The G-code link for ``machine``'s dialect over an open ``port``."""
     dialect = machine["controller.dialect"]
-    if dialect in ("grbl", "grblhal"):
+    if dialect in ("grbl", "grblhal", "fluidnc"):
         return GrblLink(port, dialect, **options)
     if dialect == "marlin":
         return MarlinLink(port, **options)
     raise BadInput(f"machine {machine.name!r} has controller.dialect {dialect!r}; "
-                   "expected 'grbl', 'grblhal' or 'marlin' for a G-code link")
+                   "expected 'grbl', 'grblhal', 'fluidnc' or 'marlin' for a G-code link")
 
 
 def open_link(url, machine, **options):

@@ -404,7 +404,7 @@ class DynamixelLink:
             self._executed.append(step)
         self._step_index, self._move_index = step.index + 1, 0
 
-    def move_to(self, ring_deg, head_mm):
+    def move_to(self, ring_deg, head_mm, *, axis=None):
         """Write the goals that change and wait until both servos are there.
 
         Both axes move together (one sync write) only while the head stays on the

@@ -37,7 +37,9 @@ log = logging.getLogger(__name__)
 _BANNER = re.compile(r"^(Grbl|GrblHAL|grblHAL)\s+(\S+)", re.IGNORECASE)
 _OPT = re.compile(r"^\[OPT:([^,\]]*),(\d+),(\d+)")
 _VER = re.compile(r"^\[VER:([^:\]]*)")
-DEFAULT_RX = {"grbl": 128, "grblhal": 1024}
+DEFAULT_RX = {"grbl": 128, "grblhal": 1024, "fluidnc": 128}
+_FLUIDNC = re.compile(r"FluidNC\s+(v?[\w.\-]+)")   # in its banner and in $I's [VER:3.7 FluidNC v3.7.8:]
+_NAMES = {"grbl": "GRBL", "grblhal": "grblHAL", "fluidnc": "FluidNC"}
 _RESET = b"\x18"
 _PROBE = "$G"                          # answered [GC:...] + ok, once every earlier line is done
 _PROBE_BYTES = len(_PROBE) + 1
@@ -70,7 +72,7 @@ class GrblLink(LineLink):
     Parameters
     ----------
     port : an open pyserial port
-    dialect : "grbl" or "grblhal", the machine file's ``controller.dialect``
+    dialect : "grbl", "grblhal" or "fluidnc", the machine file's ``controller.dialect``
     sync_line : the line whose answer means "all motion finished" (``G4 P0``)
     lookahead : how many steps beyond the last executed one may be sent
     """
@@ -128,9 +130,12 @@ class GrblLink(LineLink):
             raise self.fail("no answer from the machine (expected GRBL's banner or $I); "
                             "check the port, the baud rate and that the machine is on")
         found = "grblhal" if name.lower() == "grblhal" or "grblHAL" in joined else "grbl"
+        m = _FLUIDNC.search(joined)
+        if m:                                  # FluidNC says "Grbl 3.7 [FluidNC v3.7.8 ...]"
+            found, name, version = "fluidnc", "FluidNC", m.group(1)
         if found != self.dialect:
-            raise self.fail(f"the machine runs {('grblHAL' if found == 'grblhal' else 'GRBL')} "
-                            f"{version}, but the machine file says dialect {self.dialect!r}")
+            raise self.fail(f"the machine runs {_NAMES[found]} {version}, but the machine file says "
+                            f"dialect {self.dialect!r}")
         if rx:
             # GRBL 1.1 reports the usable size; keep one byte of margin for GRBL's ring buffer
             self.rx_size = rx - 1 if found == "grbl" and rx == 128 else rx

@@ -1,19 +1,37 @@
-"""A G-code link seen as a winding machine: steps in, executed steps out.
+"""A G-code link seen as a winding machine: steps in, executed *and verified* steps out.
 
 :class:`GcodeMachineLink` joins a protocol link (:class:`GrblLink` or
 :class:`MarlinLink`: lines <-> bytes) and the motion layer's dialect (steps ->
 lines) into the step-level interface the wind loop drives (documented in
 :mod:`stringbot.winding`); a servo link implements the same interface directly.
+
+Never believe a move you did not see
+------------------------------------
+A firmware's ``ok`` to a sync line says the motion queue ran dry; it does not
+say the machine is where the host meant it to be (a line answered ``ok`` but
+never executed, a position wiped by a reset whose banner was lost).  So after
+every move (and, streaming, after every step) the link asks the machine's own
+report -- GRBL's ``?`` (``MPos`` less the work offset), Marlin's ``M114`` --
+waits until it stands still, and compares it with the planned point within
+one step of each axis (:attr:`GcodeMachineLink.position_tolerance`).  Only
+then is the move handed to the wind loop (and journaled).  A machine that is
+anywhere else stops the winding at once with one line naming both points; the
+stop record keeps the position it reported.
+
+Each move line names only the axis that moves (:meth:`GcodeDialect.move_line`
+with the point it starts from), so a ring move never moves the head and a head
+move never turns the ring, whatever the firmware believes of the other axis.
 """
 
 import logging
 import re
 import time
 
-from ..motion import dialect_for
+from ..motion import Move, dialect_for
 from ..motion.positions import position_tolerance
 from .base import where_of
 from .grbl import GrblLink
+from .job_recovery import GcodeRecovery
 from .marlin import MarlinLink
 
 __all__ = ["GcodeMachineLink", "gcode_machine_link"]
@@ -23,16 +41,20 @@ log = logging.getLogger(__name__)
 _G54 = re.compile(r"^\[G54:([-\d.,]+)\]")
 
 
-class GcodeMachineLink:
+class GcodeMachineLink(GcodeRecovery):
     """Step-level interface over a G-code protocol link.
 
     Parameters
     ----------
     proto : GrblLink or MarlinLink
     machine : firmware_protocol.machine.Machine
+    sync : "move" (default: each move waited for and verified) or "step" (a step's lines
+        streamed with one sync; verified at each step's end)
+    verify : bool
+        Compare the machine's reported position with the plan after every move (default).
     """
 
-    def __init__(self, proto, machine, *, sync="move"):
+    def __init__(self, proto, machine, *, sync="move", verify=True):
         if sync not in ("move", "step"):
             raise ValueError(f"sync is {sync!r}; expected 'move' or 'step'")
         self.proto = proto
@@ -40,9 +62,15 @@ class GcodeMachineLink:
         self.dialect = dialect_for(machine)
         self.axes = _axis_order(machine)
         self.sync = sync
+        self.verify = verify
         self.on_move = None             # callable(step, move_index) once a move is executed
         self._step_index = 0            # first step not yet handed over as executed
         self._move_index = 0            # first move of it not known executed
+        self.here = None                # (ring, head) the machine was last seen at (plan point)
+        self.rest = None                # (ring, head) measured at rest, nothing sent since
+        self.checks = 0                 # positions compared with the plan (for figures)
+        self._offset = None             # GRBL: G54's offset (machine -> job coordinates)
+        self._tolerance = None
 
     # the interface of stringbot.winding ------------------------------------------------
     @property
@@ -66,44 +94,66 @@ class GcodeMachineLink:
         """GRBL/grblHAL: read ``$$`` once (steps per unit for the position tolerance)."""
         if isinstance(self.proto, GrblLink) and self.proto.settings is None:
             self.proto.read_settings()
-
-    def _axis_index(self, letter):
-        names = self._axis_names()
-        return names.index(letter) if letter in names else None
+            self._tolerance = None
 
     @property
     def position_tolerance(self):
         """``(ring_deg, head_mm)``: how far a reported position may be from a point reached: one
         step of each axis (the firmware's ``$100``.. when read, else the machine file's) plus
         print and float32 rounding (see :mod:`stringbot.motion.positions`)."""
-        m = self.machine
-        steps = {}
-        settings = getattr(self.proto, "settings", None) or {}
-        for role, key in (("ring", "controller.ring_axis"), ("head", "controller.head_axis")):
-            i = self._axis_index(m[key])
-            value = settings.get(100 + i) if i is not None else None
-            steps[role] = value if value else None
-        decimals = 3 if isinstance(self.proto, GrblLink) else 2
-        return position_tolerance(m, ring_steps=steps["ring"], head_steps=steps["head"],
-                                  decimals=decimals)
+        if self._tolerance is None:
+            m = self.machine
+            steps = {}
+            settings = getattr(self.proto, "settings", None) or {}
+            for role, key in (("ring", "controller.ring_axis"), ("head", "controller.head_axis")):
+                i = self._axis_index(m[key])
+                value = settings.get(100 + i) if i is not None else None
+                steps[role] = value if value else None
+            decimals = 3 if isinstance(self.proto, GrblLink) else 2
+            self._tolerance = position_tolerance(m, ring_steps=steps["ring"], head_steps=steps["head"],
+                                                 decimals=decimals)
+        return self._tolerance
 
     def prepare(self, *, home, resume_at=None):
         """Alarms, homing where the machine file says so, modal state."""
         home_lines = self.dialect.home() if home else []
         self.proto.prepare(home=bool(home_lines), preamble=self.dialect.preamble(),
                            home_lines=home_lines)
+        self._offset = None
 
     def execute(self, steps, on_executed=None):
         """Run ``steps``: move by move (``sync="move"``) or streamed with a sync per step."""
         if self.sync == "step":
-            def done(step):
-                self._step_index, self._move_index = step.index + 1, 0
-                if on_executed is not None:
-                    on_executed(step)
-            self.proto.execute(steps, self.dialect.step_lines, done)
+            self._stream(steps, on_executed)
             return
         for step in steps:
             self.run_step(step, 0, on_executed)
+
+    def _stream(self, steps, on_executed):
+        prev = {"move": self.here}
+
+        def lines_for(step):
+            lines = self.dialect.step_lines(step, prev["move"])
+            prev["move"] = step.moves[-1]
+            return lines
+
+        def done(step):
+            if self.verify:
+                self._verify(step.moves[-1], where_of(step), f"step {step.index + 1}")
+            self.here = _point(step.moves[-1])
+            self._step_index, self._move_index = step.index + 1, 0
+            if on_executed is not None:
+                on_executed(step)
+
+        lookahead = getattr(self.proto, "lookahead", None)
+        if self.verify and lookahead is not None:
+            self.proto.lookahead = 0        # the machine stands still at each step's end
+        self.rest = None
+        try:
+            self.proto.execute(steps, lines_for, done)
+        finally:
+            if lookahead is not None:
+                self.proto.lookahead = lookahead
 
     def execute_lines(self, step, moves, on_executed=None):
         """Run the rest of ``step`` after a stop: ``moves`` are its Moves from the interrupted one on.
@@ -114,16 +164,17 @@ class GcodeMachineLink:
         self.run_step(step, len(step.moves) - len(moves), on_executed)
 
     def run_step(self, step, first, on_executed=None):
-        """Moves ``first``.. of ``step``, each sent with a sync and waited for."""
+        """Moves ``first``.. of ``step``, each sent with a sync, waited for and verified."""
         where = where_of(step)
         self._step_index = step.index
         for k in range(first, len(step.moves)):
             self._move_index = k
-            self.proto.run_lines([self.dialect.move_line(step.moves[k])], where)
+            self._move(step.moves[k], where, f"move {k + 1} of step {step.index + 1}")
             self._move_index = k + 1
             if self.on_move is not None:
                 self.on_move(step, k)
         if step.dwell_s > 0:
+            self.rest = None
             self.proto.run_lines([self.dialect.dwell(step.dwell_s)], where)
         self._step_index, self._move_index = step.index + 1, 0
         if on_executed is not None:
@@ -131,43 +182,96 @@ class GcodeMachineLink:
         else:
             self.proto.executed.append(step)
 
-    def stop_point(self):
-        """``{"step_index", "move"}``: the first step not handed over, the first of its moves
-        not known executed (the one that was running, or about to)."""
-        return {"step_index": self._step_index, "move": self._move_index}
+    def _move(self, move, where, what):
+        """One move: its line (only the axes that change) and the sync, then the check."""
+        self.rest = None
+        self.proto.run_lines([self.dialect.move_line(move, self.here)], where)
+        if self.verify:
+            self._verify(move, where, what)
+        self.here = _point(move)
 
-    def finish(self):
-        self.proto.finish(self.dialect.end())
+    # ---- the machine's own report --------------------------------------------------------
+    def _verify(self, move, where, what):
+        """Stop unless the machine, at rest, reports ``move``'s target within the tolerance."""
+        target = _point(move)
+        here = self.at_rest(where)
+        self.checks += 1
+        tol = self.position_tolerance
+        if here is not None and abs(here[0] - target[0]) <= tol[0] and abs(here[1] - target[1]) <= tol[1]:
+            self.rest = target
+            return
+        self.rest = here
+        seen = "no position" if here is None else f"ring {here[0]:.3f}, head {here[1]:.3f}"
+        raise self.proto.fail(
+            f"after {what} the machine reports {seen}, not the planned ring {target[0]:.3f}, head "
+            f"{target[1]:.3f}: a line was acknowledged but not executed, or its position was wiped "
+            "or jumped; stopped", where)
 
-    def hold(self):
-        return self.proto.hold()
+    def at_rest(self, where=None, timeout=None):
+        """``(ring_deg, head_mm)`` the machine reports once it stands still (None: no position).
 
-    def take_executed(self):
-        return self.proto.take_executed()
+        GRBL: ``?`` until Idle (a sync answered early, e.g. lost on the way, leaves it moving
+        a little longer); an alarm fails.  Marlin: ``M114`` after its ``M400``.
+        """
+        proto = self.proto
+        if not isinstance(proto, GrblLink):
+            return self._marlin_position(proto.status())
+        deadline = time.monotonic() + (timeout or proto.motion_timeout)
+        while True:
+            st = proto.status()
+            if st.state == "Alarm":
+                proto.position_lost = True
+                raise proto.fail("the machine went into alarm (its position is not to be trusted)",
+                                 where or proto.where)
+            if st.state in ("Idle", "Check") or (st.state == "Hold" and st.sub == "0"):
+                return self._job_position(st)
+            if time.monotonic() > deadline:
+                raise proto.fail(f"the machine is still {st.state} after its move was answered",
+                                 where or proto.where)
+            line = proto.readline(0.01)             # let time pass (a simulated clock runs on reads)
+            if line is not None:
+                proto._handle(line)
 
-    def status(self):
-        return self.proto.status()
+    def _job_position(self, st):
+        """A GRBL status -> ``(ring, head)`` in the job's (G54 work) coordinates."""
+        if st.mpos is None:
+            return None
+        if "WPos" in st.fields and "MPos" not in st.fields:
+            return self._pick(st.mpos)
+        wco = st.fields.get("WCO")
+        if wco:
+            try:
+                self._offset = tuple(float(v) for v in wco.split(","))
+            except ValueError:
+                pass
+        if self._offset is None:
+            self._offset = self._work_offset()
+        offset = self._offset or (0.0,) * len(st.mpos)
+        return self._pick(tuple(p - o for p, o in zip(st.mpos, offset)))
+
+    def _marlin_position(self, st):
+        axes = st.fields.get("axes") or {}
+        ring = axes.get(self.machine["controller.ring_axis"])
+        head = axes.get(self.machine["controller.head_axis"])
+        return None if ring is None or head is None else (ring, head)
 
     def position(self):
         """``(ring_deg, head_mm)`` in the job's coordinates as the firmware believes, or None."""
         st = self.proto.status()
         if isinstance(self.proto, GrblLink):
-            offset = self._work_offset()
-            pos = st.mpos
-            if pos is None:
-                return None
-            if offset is not None:
-                pos = tuple(p - o for p, o in zip(pos, offset))
-        else:
-            axes = st.fields.get("axes") or {}
-            ring = axes.get(self.machine["controller.ring_axis"])
-            head = axes.get(self.machine["controller.head_axis"])
-            return None if ring is None or head is None else (ring, head)
-        return self._pick(pos)
+            self._offset = self._work_offset()
+            return self._job_position(st)
+        return self._marlin_position(st)
+
+    def raw_position(self):
+        """The firmware's machine position, every axis in its order (GRBL ``MPos``), or None."""
+        return self.proto.status().mpos
 
     def _work_offset(self):
         """G54's offset from ``$#`` (the motion layer declares positions with ``G10 L20 P1``)."""
         proto = self.proto
+        if not isinstance(proto, GrblLink):
+            return None
         proto.write(b"$#\n")
         offset = None
         while True:
@@ -187,6 +291,10 @@ class GcodeMachineLink:
                 names = line.rstrip("]").split(":")[-1]
         return names
 
+    def _axis_index(self, letter):
+        names = self._axis_names()
+        return names.index(letter) if letter in names else None
+
     def _pick(self, pos):
         values = dict(zip(self._axis_names(), pos))
         ring = values.get(self.machine["controller.ring_axis"])
@@ -195,71 +303,48 @@ class GcodeMachineLink:
             return None
         return ring, head
 
-    # ---- for resume ----------------------------------------------------------------------
-    def reconnect(self, timeout=600.0):
-        """After a stop: settle the machine, identify it, clear an alarm without moving.
+    # ---- stopping --------------------------------------------------------------------------
+    def stop_point(self):
+        """``{"step_index", "move"[, "position"]}``: the first step not handed over, the first of
+        its moves not known executed, and where the machine was measured at rest when nothing
+        has been sent since (the truth after a reboot, see :mod:`stringbot.winding.resume`)."""
+        point = {"step_index": self._step_index, "move": self._move_index}
+        if self.rest is not None and not self.proto.position_lost:
+            point["position"] = [float(self.rest[0]), float(self.rest[1])]
+        return point
 
-        A machine still running the lines it had (its host died) is waited for; one
-        in feed hold is flushed (GRBL: soft reset once stopped, which keeps its
-        position).  Returns True when the firmware's position is not to be trusted:
-        it (re)started (banner) or raised an alarm.
-        """
-        proto = self.proto
-        said = proto.drain_input(quiet=0.05, limit=2.5)
-        grbl = isinstance(proto, GrblLink)
-        if grbl:
-            self._settle(timeout)
-        info = proto.identify()
-        self._read_settings()
-        lost = proto.position_lost or any(_started(x) for x in list(said) + list(info.lines))
-        if grbl and proto.status().state == "Alarm":
-            lost = True
-            proto.command("$X")
-        return lost
+    def finish(self):
+        self.rest = None
+        self.proto.finish(self.dialect.end())
 
-    def _settle(self, timeout):
-        proto = self.proto
-        deadline = time.monotonic() + timeout
-        while True:
-            st = proto.status()
-            if st.state == "Hold" and st.sub == "0":
-                proto.flush()
-                continue
-            if st.state in ("Idle", "Alarm", "Check"):
-                proto.drain_input(quiet=0.05, limit=0.5)
-                proto.forget_unanswered()
-                return st
-            if time.monotonic() > deadline:
-                raise proto.fail(f"the machine is still {st.state} after {timeout:.0f} s; stop it and resume")
-            time.sleep(0.05)
+    def hold(self):
+        """Feed hold, wait until stopped; the position it stopped at is measured (``rest``)."""
+        st = self.proto.hold()
+        self.rest = None
+        try:
+            if not self.proto.position_lost:
+                self.rest = (self._job_position(st) if isinstance(self.proto, GrblLink)
+                             else self._marlin_position(self.proto.status()))
+        except Exception:  # the hold itself succeeded; a failed reading only loses the hint
+            log.debug("could not read the held position", exc_info=True)
+        return st
 
-    def restore_modal(self):
-        """Millimetres, absolute positions, feed per minute (what a reset forgets)."""
-        self.proto.prepare(home=False, preamble=self.dialect.preamble())
+    def settle_after_failure(self):
+        """After a failure with the port alive and the position kept: wait until the machine
+        stands still and measure where (best effort; ``rest`` stays None otherwise)."""
+        if self.proto.position_lost or self.rest is not None:
+            return
+        try:
+            here = self.at_rest(timeout=30.0) if isinstance(self.proto, GrblLink) else None
+        except Exception:
+            return
+        self.rest = here
 
-    def move_to(self, ring_deg, head_mm, *, axis):
-        """One straight move at ``axis``'s feed ("ring" or "head"), waited for."""
-        from ..motion import Move
-        m = self.machine
-        feed = m["ring.feed_deg_per_min"] if axis == "ring" else m["head.feed_mm_per_min"]
-        self.proto.run_lines([self.dialect.move_line(Move(ring_deg, head_mm, feed))], self.proto.where)
+    def take_executed(self):
+        return self.proto.take_executed()
 
-    def set_position(self, ring_deg, head_mm):
-        """Declare where the machine is (after homing or an operator's check)."""
-        self.proto.command(self.dialect.set_position(ring_deg, head_mm))
-
-    def home(self):
-        for line in self.dialect.home():
-            self.proto.command(line, timeout=getattr(self.proto, "motion_timeout", 600.0))
-
-    def unlock(self):
-        if isinstance(self.proto, GrblLink):
-            self.proto.command("$X")
-
-    def flush(self):
-        """Drop queued lines (GRBL: soft reset once stopped)."""
-        if isinstance(self.proto, GrblLink):
-            self.proto.flush()
+    def status(self):
+        return self.proto.status()
 
     def close(self):
         self.proto.close()
@@ -269,11 +354,15 @@ class GcodeMachineLink:
         return self.proto.lines_sent
 
 
+def _point(move):
+    return (move.ring_deg, move.head_mm) if isinstance(move, Move) else tuple(move)
+
+
 def _axis_order(machine):
     dialect = machine["controller.dialect"]
     if dialect == "grbl":
         return "XYZ"
-    if dialect == "grblhal":
+    if dialect in ("grblhal", "fluidnc"):
         return "XYZA" if "A" in (machine["controller.ring_axis"], machine["controller.head_axis"]) \
             else "XYZ"
     return "XYZA"
@@ -282,16 +371,11 @@ def _axis_order(machine):
 def gcode_machine_link(port, machine, **options):
     """The step-level link for a G-code ``machine`` over an open ``port``."""
     sync = options.pop("sync", "move")
+    verify = options.pop("verify", True)
     dialect = machine["controller.dialect"]
-    if dialect in ("grbl", "grblhal"):
+    if dialect in ("grbl", "grblhal", "fluidnc"):
         proto = GrblLink(port, dialect, **options)
     else:
         proto = MarlinLink(port, **options)
-    return GcodeMachineLink(proto, machine, sync=sync)
+    return GcodeMachineLink(proto, machine, sync=sync, verify=verify)
 
-
-
-def _started(line):
-    """A line a firmware prints when it (re)starts."""
-    from firmware_protocol.grbl import is_banner
-    return bool(line) and (is_banner(line) or line.strip() == "start")

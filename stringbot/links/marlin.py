@@ -70,6 +70,7 @@ class MarlinLink(LineLink):
         self._history = {}
         self._swallow = 0
         self._awaiting = None
+        self._heard = None            # a list while query() collects the echo: lines of an answer
 
     # ---- identification --------------------------------------------------------------
     def identify(self):
@@ -131,6 +132,15 @@ class MarlinLink(LineLink):
 
     def command(self, text, timeout=None):
         self._send(text, Where(), timeout or self.response_timeout)
+
+    def query(self, text, timeout=None):
+        """Send ``text`` (``M503``) and return the ``echo:`` lines it answered before its ``ok``."""
+        self._heard = []
+        try:
+            self.command(text, timeout=timeout)
+            return list(self._heard)
+        finally:
+            self._heard = None
 
     def prepare(self, *, home=False, preamble=(), home_lines=("G28",)):
         self._home_and_preamble(home, home_lines, preamble, self.motion_timeout)
@@ -279,6 +289,8 @@ class MarlinLink(LineLink):
                 continue
             if low.startswith(("echo:", "//", "cap:", "firmware_name")):
                 log.info("machine says: %s", line)
+                if self._heard is not None:
+                    self._heard.append(line)
                 continue
             self.stop_quietly()
             raise self.fail(f"the machine answered garbage: {line[:60]!r}", where)

@@ -8,9 +8,14 @@ exit 2); anything else the port itself reports is a :class:`MachineFailure`.
 """
 
 import errno
+import fcntl
 import logging
+import socket
+import sys
+import termios
 
 import serial
+from serial.urlhandler import protocol_socket
 
 from ..errors import BadInput, MachineFailure
 
@@ -51,6 +56,95 @@ def sim_url(machine_name, *, record=None, faults=None, realtime=False):
     return "sim://?" + urlencode(query, safe="/,@:")
 
 
+class _TcpSerial(protocol_socket.Serial):
+    """pyserial's ``socket://`` port, tuned for a line protocol's round trips.
+
+    * TCP_NODELAY: a short line goes out at once, not held by Nagle's algorithm
+      until the machine has acknowledged the previous one;
+    * TCP_QUICKACK (Linux), re-armed before every read: what the machine sends is
+      acknowledged at once, so a machine whose own TCP stack holds small answers
+      back until then (Nagle on its side, e.g. a plain ``socat`` bridge, many
+      embedded stacks) is not kept waiting by our delayed ACK (40 ms each);
+    * ``in_waiting`` reports the bytes really waiting (FIONREAD) instead of 0 or 1,
+      so an answer is read in one call, not a byte at a time.
+    """
+
+    def open(self):
+        super().open()
+        sock = self._socket
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._quickack()
+
+    def _quickack(self):
+        if _QUICKACK is not None and self._socket is not None:
+            try:
+                self._socket.setsockopt(socket.IPPROTO_TCP, _QUICKACK, 1)
+            except OSError:
+                pass
+
+    @property
+    def in_waiting(self):
+        if not self.is_open:
+            raise serial.PortNotOpenError()
+        try:
+            buf = fcntl.ioctl(self._socket.fileno(), termios.FIONREAD, b"\0\0\0\0")
+            return int.from_bytes(buf, sys.byteorder)
+        except OSError:
+            return super().in_waiting
+
+    def read(self, size=1):
+        self._quickack()
+        data = super().read(size)
+        self._quickack()
+        return data
+
+
+_QUICKACK = getattr(socket, "TCP_QUICKACK", None)
+
+
+def _open_url(url, **kw):
+    """``serial_for_url`` with our tuned TCP port for ``socket://``; the RFC 2217 client takes no
+    write timeout (pyserial raises NotImplementedError for one), so it gets none."""
+    scheme = url.split("://", 1)[0].lower() if "://" in url else ""
+    if scheme in ("socket", "rfc2217"):
+        _check_network_url(url, scheme)
+    if scheme == "socket":
+        port = _TcpSerial(None, **kw)
+        port.port = url
+        port.open()
+        return port
+    if scheme == "rfc2217":
+        kw["write_timeout"] = None
+    return serial.serial_for_url(url, **kw)
+
+
+def _check_network_url(url, scheme):
+    """``socket://HOST:PORT`` / ``rfc2217://HOST:PORT[?options]`` with a port 1..65535, or BadInput."""
+    from urllib.parse import urlsplit
+    try:
+        parts = urlsplit(url)
+        port = parts.port
+    except ValueError:
+        port = None
+        parts = None
+    if parts is None or not parts.hostname or port is None or not 1 <= port <= 65535 \
+            or (scheme == "socket" and parts.query and not parts.query.startswith("logging=")):
+        raise BadInput(f"port {url!r} is not a usable URL; expected {scheme}://HOST:PORT with a TCP port "
+                       f"1..65535 (e.g. {scheme}://192.168.1.50:23)")
+
+
+#: What the network says when the machine is not there: the user's input to check (exit 2).
+_UNREACHABLE = (("connection refused", "the connection was refused: nothing listens there"),
+                ("name or service not known", "the host name is unknown"),
+                ("nodename nor servname", "the host name is unknown"),
+                ("temporary failure in name resolution", "the host name cannot be resolved"),
+                ("no address associated", "the host name is unknown"),
+                ("timed out", "the connection timed out"),
+                ("network is unreachable", "the network is unreachable"),
+                ("no route to host", "there is no route to the host"),
+                ("host is down", "the host is down"))
+
+
 def open_port(url, *, baudrate=115200, timeout=0.05, write_timeout=2.0):
     """Open ``url`` and return the pyserial port object.
 
@@ -63,17 +157,19 @@ def open_port(url, *, baudrate=115200, timeout=0.05, write_timeout=2.0):
     """
     _register_sim()
     try:
-        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout,
-                                     write_timeout=write_timeout, exclusive=True)
+        return _open_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout, exclusive=True)
+    except BadInput:
+        raise
     except TypeError:
         # URL handlers that do not take ``exclusive``
         pass
-    except (serial.SerialException, OSError, ValueError) as exc:
+    except (serial.SerialException, OSError, ValueError, NotImplementedError) as exc:
         raise _explain(url, exc) from None
     try:
-        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout,
-                                     write_timeout=write_timeout)
-    except (serial.SerialException, OSError, ValueError) as exc:
+        return _open_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout)
+    except BadInput:
+        raise
+    except (serial.SerialException, OSError, ValueError, NotImplementedError) as exc:
         raise _explain(url, exc) from None
 
 
@@ -82,6 +178,11 @@ def _explain(url, exc):
     code = getattr(exc, "errno", None)
     text = str(exc)
     low = text.lower()
+    if "://" in url and not url.lower().startswith("sim://"):
+        for words, meaning in _UNREACHABLE:
+            if words in low:
+                return BadInput(f"port {url!r}: {meaning}; check the machine is on the network and the "
+                                "host and port (a FluidNC or grblHAL telnet server listens on port 23)")
     if isinstance(exc, FileNotFoundError) or code == errno.ENOENT or "no such file" in low \
             or "could not find" in low or "filenotfounderror" in low:
         return BadInput(f"port {url!r} does not exist; give --port a serial device "

@@ -11,7 +11,7 @@ The host winds step by step: it sends ``dialect.step_lines(step)``, then
 ``dialect.sync()``, and records the step once the sync is acknowledged.
 
 A colour plan's program pauses before each layer but the first, in the
-dialect's own way (``M0``: GRBL and grblHAL hold until cycle start, ``~``;
+dialect's own way (``M0``: GRBL, grblHAL and FluidNC hold until cycle start, ``~``;
 Marlin shows an ``M117`` message and waits for the click of its LCD), after
 a comment naming the thread to cut and the colour to tie on at which pin.
 """
@@ -66,16 +66,39 @@ class GcodeDialect:
         head = m["controller.home_head_mm"]
         return m["controller.home_ring_deg"], m["head.in_mm"] if head is None else head
 
-    def home_command(self):
-        return "$H"
+    def home_command(self, axes=None):
+        """Home every axis, or only ``axes`` (a list of "ring", "head"): ``$H``, ``$HY``."""
+        if not axes:
+            return "$H"
+        return "$H" + "".join(self._letter(a) for a in axes)
+
+    def _letter(self, axis):
+        return {"ring": self.ring_axis, "head": self.head_axis}[axis]
+
+    def jog_lines(self, axis, delta, feed):
+        """Move ``axis`` ("ring" or "head") by ``delta`` from wherever it is, then absolute again."""
+        return [f"G91 G1 {self._letter(axis)}{fmt(delta)} F{fmt(feed)}", "G90"]
 
     def set_position(self, ring_deg, head_mm):
         """Declare the current position (work coordinates) without moving."""
         return f"G10 L20 P1 {self.ring_axis}{fmt(ring_deg)} {self.head_axis}{fmt(head_mm)}"
 
-    def move_line(self, move):
-        """One ``G1`` line with both axes (absolute) and the feed."""
-        line = f"G1 {self.ring_axis}{fmt(move.ring_deg)} {self.head_axis}{fmt(move.head_mm)}"
+    def move_line(self, move, prev=None):
+        """One ``G1`` line to ``move``'s absolute target, with its feed.
+
+        ``prev``: the point the machine starts from (a Move or ``(ring_deg, head_mm)``).  Given
+        it, the line names only the axes that change, so that a ring move can never move
+        the head, nor a head move the ring, whatever the firmware believes of the other
+        axis (both axes when ``prev`` is None, or a move changes both).
+        """
+        words = [f"{self.ring_axis}{fmt(move.ring_deg)}", f"{self.head_axis}{fmt(move.head_mm)}"]
+        if prev is not None:
+            was = (prev.ring_deg, prev.head_mm) if hasattr(prev, "ring_deg") else tuple(prev)
+            changed = [w for w, a, b in zip(words, was, (move.ring_deg, move.head_mm))
+                       if fmt(a) != fmt(b)]
+            if len(changed) == 1:
+                words = changed
+        line = "G1 " + " ".join(words)
         return line if move.feed is None else f"{line} F{fmt(move.feed)}"
 
     def dwell(self, seconds):
@@ -87,10 +110,16 @@ class GcodeDialect:
         of = f"/{step.total}" if step.total else ""
         return f"; pin {step.pin} (step {step.index + 1}{of})"
 
-    def step_lines(self, step):
-        """The lines of one hooking step, the progress comment first."""
+    def step_lines(self, step, prev=None):
+        """The lines of one hooking step, the progress comment first.
+
+        ``prev``: where the step starts (the previous step's last Move); each move line
+        names only the axis it moves (see :meth:`move_line`).
+        """
         lines = [self.progress(step)]
-        lines += [self.move_line(mv) for mv in step.moves]
+        for mv in step.moves:
+            lines.append(self.move_line(mv, prev))
+            prev = mv
         if step.dwell_s > 0:
             lines.append(self.dwell(step.dwell_s))
         return lines
@@ -119,6 +148,12 @@ class GrblHalDialect(GcodeDialect):
     name = "grblhal"
 
 
+class FluidNcDialect(GcodeDialect):
+    """FluidNC (GRBL's protocol on an ESP32, often over telnet): like grblHAL, rotary A, B, C axes."""
+
+    name = "fluidnc"
+
+
 class MarlinDialect(GcodeDialect):
     """Marlin 2.1 with a rotary ``A`` axis: ``G28``/``G92``, ``M400`` sync, dwell in ms, no ``M2``."""
 
@@ -128,8 +163,10 @@ class MarlinDialect(GcodeDialect):
     def preamble(self):
         return ["G21", "G90"]           # Marlin has no G94 (feeds are always per minute)
 
-    def home_command(self):
-        return f"G28 {self.head_axis} {self.ring_axis}"
+    def home_command(self, axes=None):
+        if not axes:
+            return f"G28 {self.head_axis} {self.ring_axis}"
+        return "G28 " + " ".join(self._letter(a) for a in axes)
 
     def set_position(self, ring_deg, head_mm):
         return f"G92 {self.ring_axis}{fmt(ring_deg)} {self.head_axis}{fmt(head_mm)}"
@@ -144,7 +181,7 @@ class MarlinDialect(GcodeDialect):
         return [self.sync(), f"M117 {message}", "M0"]
 
 
-_DIALECTS = {"grbl": GrblDialect, "grblhal": GrblHalDialect, "marlin": MarlinDialect}
+_DIALECTS = {"grbl": GrblDialect, "grblhal": GrblHalDialect, "fluidnc": FluidNcDialect, "marlin": MarlinDialect}
 
 
 def dialect_for(machine):
@@ -201,11 +238,13 @@ def gcode_job(plan, machine, *, plan_name=None):
         lines, changes = _colour_header(plan, machine, steps, lines)
     lines += dialect.home()         # first: a GRBL that homes starts in alarm and refuses G-code until $H
     lines += dialect.preamble()
+    prev = None
     for step in steps:
         if step.index in changes:
             comment, message = changes[step.index]
             lines += [comment] + dialect.spool_change(message)
-        lines += dialect.step_lines(step)
+        lines += dialect.step_lines(step, prev)
+        prev = step.moves[-1]
     lines += dialect.end()
     return "\n".join(lines) + "\n"
 

@@ -110,6 +110,9 @@ def check_plan_fits(plan, machine):
     if not plan.connected:
         raise BadInput("plan is a disconnected chord set (field 'connected' is false); expected a "
                        "connected plan with a 'sequence' (plan again without --disconnected)")
+    if plan.frame != "circle":
+        raise BadInput(f"plan is for a {plan.frame} frame but machine {machine.name!r} winds a ring; expected a "
+                       "plan made with --frame circle (wind a square frame by hand: stringbot pins)")
     if plan.pins != machine.pins:
         raise BadInput(f"plan has {plan.pins} pins but machine {machine.name!r} has ring.pins = "
                        f"{machine.pins}; expected the same pin count (plan with --pins {machine.pins} "

@@ -26,25 +26,27 @@ import time
 import numpy as np
 
 from ..errors import BadInput
-from .chords import chord_pixels, chord_space, pixel_chords
+from .chords import chord_space, pixel_chords
 from .image import read_mask, read_picture
 from .plan_file import Plan
 from .progress import report
 
 log = logging.getLogger(__name__)
 
-__all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "DEFAULTS", "FILL", "STYLES",
+__all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "thread_model", "DEFAULTS", "FILL", "STYLES",
            "MAX_PINS"]
 
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").  beta, gamma and T are
 #: those of the ``detail`` style; ``fill`` uses :data:`FILL`.
 DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
-            "iterations": 25, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
+            "iterations": 25, "refine": 300, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
+#: ThreadTone's working size: a picture of radius 500 px.
+GREEDY_SIZE = 1001
 MIN_SIZE, MAX_SIZE = 32, 2001
 MAX_LINES = 100_000
-METHODS = ("fitness", "greedy")
+METHODS = ("residual", "fitness", "greedy")
 STYLES = ("auto", "detail", "fill")
 #: The ``fill`` style: the paper's regularisation weights times 30 and a sharp tanh.
 FILL = {"beta": 150.0, "gamma": 300.0, "T": 1.0}
@@ -88,6 +90,21 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
                        "expected --style detail (or no --style) with them")
 
 
+def thread_model(diameter_mm=None, thread_mm=None):
+    """The :class:`~stringbot.planner.thread.ThreadModel` of the options; BadInput naming the one out of range."""
+    from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
+
+    d = DEFAULT_DIAMETER_MM if diameter_mm is None else diameter_mm
+    t = DEFAULT_THREAD_MM if thread_mm is None else thread_mm
+    for name, v, top in (("--diameter-mm", d, 100_000.0), ("--thread-mm", t, 100.0)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= top):
+            raise BadInput(f"{name} {v:g}; expected millimetres, a number > 0 and <= {top:g}")
+    if t * 20 > d:
+        raise BadInput(f"--thread-mm {t:g} is more than a 20th of --diameter-mm {d:g}; "
+                       "expected a thread much thinner than the frame")
+    return ThreadModel(diameter_mm=float(d), thread_mm=float(t))
+
+
 def style_candidates(style, *, beta=None, gamma=None, T=None):
     """The fitness knob settings to try.
 
@@ -124,11 +141,12 @@ def thread_length(pin_xy, chords):
     return float(np.linalg.norm(pin_xy[c[:, 0]] - pin_xy[c[:, 1]], axis=1).sum())
 
 
-def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="auto", start_pin=0,
-                 method="fitness", disconnected=False, importance=None, gray="decolor", style=None,
+def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines="auto", start_pin=None,
+                 method="residual", disconnected=False, importance=None, gray=None, style=None,
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
-                 picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"]):
+                 picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
+                 diameter_mm=None, thread_mm=None, fit=False, refine=DEFAULTS["refine"]):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -137,7 +155,11 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         The picture.
     pins, frame, size, crop, lines, start_pin, method, disconnected, importance, gray,
     alpha, epsilon, iterations
-        The knobs (see ``stringbot plan --help`` and docs/planner.md).
+        The knobs (see ``stringbot plan --help`` and docs/planner.md).  ``size``
+        None: 1001 for greedy (ThreadTone's own), else 401; ``gray`` None:
+        luminance for greedy (ThreadTone's), else decolor.  ``start_pin`` None:
+        ``pins // 4`` for greedy (ThreadTone's pin 0 faces right), else 0;
+        greedy's default crop is ThreadTone's square (whole-pixel offsets).
     style : {"auto", "detail", "fill"} or None
         Fitness only: which setting of beta, gamma and T (see the module
         notes); None is ``auto``.
@@ -156,6 +178,14 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     greedy_reference_radius : float or None
         Greedy only: the picture radius at which its weight of 15 holds
         (ThreadTone's 500); None applies 15 at the working size as it is.
+    diameter_mm, thread_mm : float or None
+        The frame's diameter and the thread's width (None: 500 mm and
+        0.25 mm), recorded in the plan; the default method plans with them.
+    fit : bool
+        Crop the whole picture, letterboxed (white around it), instead of the
+        largest centred circle; conflicts with ``crop``.
+    refine : int
+        Residual only: pins the refinement revisits (0: none).
 
     Returns
     -------
@@ -164,12 +194,31 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         method's own figures.
     """
     t0 = time.perf_counter()
+    if size is None:  # ThreadTone works on a 1001-px picture (imgRadius 500), the paper on 401 px
+        size = GREEDY_SIZE if method == "greedy" else DEFAULTS["size"]
+    if gray is None:  # ThreadTone grays by luminance (cv2.COLOR_BGR2GRAY), the paper by decolorization
+        gray = "luminance" if method == "greedy" else "decolor"
+    if start_pin is None:  # ThreadTone starts at its pin 0, which faces right: our pin pins / 4
+        start_pin = pins // 4 if method == "greedy" else 0
+    if method == "greedy" and crop is None and not fit and picture is None:
+        from .image import threadtone_crop
+
+        crop = threadtone_crop(path)
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin, method=method,
                 alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations, style=style)
+    model = thread_model(diameter_mm, thread_mm)
     if disconnected and method != "fitness":
         raise BadInput("--disconnected works with --method fitness only")
-    if method == "greedy" and (style is not None or any(x is not None for x in (beta, gamma, T))):
-        raise BadInput("--style, --beta, --gamma and -T are knobs of --method fitness; greedy has none of them")
+    if method != "fitness" and (style is not None or any(x is not None for x in (beta, gamma, T))):
+        raise BadInput(f"--style, --beta, --gamma and -T are knobs of --method fitness; {method} has none of them")
+    if fit and crop is not None:
+        raise BadInput("--fit and --crop both choose the part of the picture to paint; give one of them")
+    if not (isinstance(refine, int) and 0 <= refine <= 1_000_000):
+        raise BadInput(f"--refine {refine}; expected 0..1000000 pins")
+    if fit and picture is None:
+        from .image import fit_crop
+
+        crop = fit_crop(path, frame)
     report("reading the picture")
     pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
     weights = None
@@ -179,24 +228,26 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
     from .fitness import frame_mask
 
     mask = frame_mask(size, frame)
-    k = auto_lines(pic.gray, mask) if lines == "auto" else int(lines)
+    k = (auto_lines(pic.gray, mask) if method != "residual" else None) if lines == "auto" else int(lines)
     space = chord_space(pins, frame)
     report("chords")
-    if method == "greedy":
-        indptr, indices = chord_pixels(space, size, cache=cache)
-        nnz = len(indices)
-    else:
+    stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m)}
+    if method == "fitness":
         rowptr, chords_of_pixel = pixel_chords(space, size, cache=cache)
-        nnz = len(chords_of_pixel)
+        stats["pixels_per_chord"] = round(float(len(chords_of_pixel) / max(space.m, 1)), 2)
     t_chords = time.perf_counter()
-    stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m),
-             "pixels_per_chord": round(float(nnz / max(space.m, 1)), 2)}
     params = {"pins": pins, "frame": frame, "size": size, "crop": pic.crop, "lines": lines, "lines_target": k,
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
               "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
               "importance": str(importance) if importance is not None else None}
     chords = None
-    if method == "greedy":
+    if method == "residual":
+        report("residual")
+        seq, extra = _residual_run(space, pic, mask, weights, lines if lines == "auto" else k, model,
+                                   start_pin=start_pin, refine=refine)
+        params.update(refine=refine, thread_px=round(model.width_px(size), 4))
+        stats.update(extra)
+    elif method == "greedy":
         from .greedy import greedy_sequence
 
         gk = {"weight": DEFAULTS["greedy_weight"], "width": DEFAULTS["greedy_width"],
@@ -204,7 +255,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
         scale = (size - 1) / 2 / greedy_reference_radius if greedy_reference_radius else 1.0
         params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
         report("greedy")
-        seq = greedy_sequence(space, size, indptr, indices, pic.gray, mask, k, start_pin=start_pin, **gk)
+        seq = greedy_sequence(space, size, pic.gray, mask, k, start_pin=start_pin, **gk)
     else:
         params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style or "auto")
         candidates = style_candidates(style, beta=beta, gamma=gamma, T=T)
@@ -233,11 +284,39 @@ def plan_picture(path, *, pins=300, frame="circle", size=401, crop=None, lines="
                        "expected a picture with some dark parts")
     stats.update(lines=len(chord_list), thread_diameters=round(thread_length(space.pin_xy, chord_list), 3),
                  setup_seconds=round(t_chords - t0, 3), seconds=round(time.perf_counter() - t0, 3))
-    if len(chord_list) < k:
+    if k is not None and len(chord_list) < k:
         log.warning("%s stopped after %d of %d lines", method, len(chord_list), k)
-    return Plan(pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
+    return Plan(diameter_mm=model.diameter_mm, thread_mm=model.thread_mm,
+                pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
                 connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])])
+
+
+def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine):
+    """The default method: residual choice under the thread model, then refinement."""
+    from .greedy import _PinLines
+    from .refine import refine_sequence
+    from .residual import Canvas, residual_sequence
+
+    size = pic.gray.shape[0]
+    target = np.where(mask, 1.0 - pic.gray / 255.0, 0.0)
+    if float(target.max(initial=0.0)) < 1.0 / 255:
+        raise BadInput("residual found nothing to draw: the picture is blank inside the frame; "
+                       "expected a picture with some dark parts")
+    w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
+    canvas = Canvas(target, w, space.pin_xy, model.width_px(size))
+    # points about every 1/400 of the frame along each chord: at 801 px every other pixel (the mean
+    # residual along a chord needs no more, and this halves the work of large sizes)
+    pin_lines = _PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / 400.0))
+    t = time.perf_counter()
+    seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines)
+    t_choose = time.perf_counter() - t
+    err = canvas.error()
+    seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
+    area = float(w.sum())
+    return seq, {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
+                 "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
+                 "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
 
 
 def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alpha, epsilon, iterations, start_pin,

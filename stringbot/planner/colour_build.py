@@ -131,8 +131,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
               "start_pin": start_pin, "method": "colour",
               "colors_requested": (f"auto:{requested[1]}" if isinstance(requested, tuple) else list(requested)),
               "colors": colors, "background": background, "order": order, "run": run, "sample": sample,
-              "min_loop": COLOUR_DEFAULTS["min_loop"], "diameter_mm": model.diameter_mm,
-              "thread_mm": model.thread_mm, "mono_lines_rule": auto_lines(pic.gray, mask)}
+              "min_loop": COLOUR_DEFAULTS["min_loop"], "mono_lines_rule": auto_lines(pic.gray, mask)}
     stats = {"lines": drawn, "thread_diameters": round(thread_length(space.pin_xy, [c for lay in layers
                                                                                         for c in lay.chords()]), 3),
              "layers": [{"color": lay.color, "lines": len(lay.sequence) - 1,
@@ -142,4 +141,5 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
              "model_error_start": round(start_err, 1), "model_error": round(cm.error(), 1),
              "setup_seconds": round(t_setup - t0, 3), "seconds": round(time.perf_counter() - t0, 3)}
     return Plan.from_layers(layers, background=background, pins=pins, frame=frame, pin_xy=space.pin_xy,
-                            crop=pic.crop, method="colour", parameters=params, source=pic.source, stats=stats)
+                            crop=pic.crop, method="colour", parameters=params, source=pic.source, stats=stats,
+                            diameter_mm=model.diameter_mm, thread_mm=model.thread_mm)

@@ -1,79 +1,171 @@
-"""The greedy baseline the paper compares with (ThreadTone, its original implementation).
+"""The greedy baseline the paper compares with: ThreadTone as published.
 
-The gray image is reversed (``255 - gray``, 0 outside the frame).  From the
-current pin, the chord whose pixels have the largest sum is drawn, the
-picture is lowered by ``weight`` (15 of 255) along it on a ``width``-pixel
-line (3), and the next step starts from its far pin.  The last ``min_loop``
-pins of the sequence (3, the current one included) are never gone back to.
-The run stops early when no chord has a positive sum.
+ThreadTone (theveloped/ThreadTone, ``threadTone.py``) works like this, and so
+does this module:
+
+* The gray picture is reversed (``255 - gray``) and is 0 outside the frame.
+* From the current pin, each chord's *line sum* is the sum of the picture at
+  ``int(hypot(dx, dy))`` points spaced evenly from pin to pin (ThreadTone's
+  ``linePixels``: ``np.linspace`` with as many points as the chord is long in
+  pixels).  The count of points is proportional to the chord's length in
+  every direction, so a diagonal chord is not under-counted as it would be
+  with one point per step of its major axis.  (A point lands on the pixel
+  nearest to it; ThreadTone truncates and shifts by one pixel, which only
+  moves its lines by a pixel.)
+* The chord with the largest positive sum is drawn; the pins of the last
+  ``min_loop`` (3) chosen chords are never gone back to.  The run stops when
+  no chord has a positive sum.
+* The picture is lowered by ``weight`` (15 of 255) where ``cv2.line(...,
+  thickness=3)`` draws: a band *perpendicular to the thread*, every pixel whose
+  centre lies within 2 pixels of the chord (OpenCV offsets the sides of a
+  thickness-3 line by 2 pixels and fills edges included; see
+  :func:`cv_half_width`).  A chord may be drawn again later, as in ThreadTone.
 
 ThreadTone works on a picture of radius ``reference_radius`` = 500 pixels
 (its ``imgRadius``); its 15-on-3-pixels is the darkness of one thread *at
-that scale*.  On a working picture of radius ``R`` the removed line keeps
-its 3-pixel width and its weight is scaled by ``R / 500``, so that one
-thread removes the same share of the picture as in ThreadTone (at 401 px,
-6 of 255).  Without this, a thread would remove 2.5 times too much darkness
-and the run would stop after about 70 % of the lines.
+that scale*.  On a working picture of radius ``R`` the band keeps its 3-pixel
+width and the weight is scaled by ``R / 500``, so that one thread removes the
+same share of the picture as in ThreadTone (at 401 px, 6 of 255; at 1001 px,
+15 exactly: ``--size 1001`` is ThreadTone's own resolution).
 """
 
 import logging
 
 import numpy as np
 
+from .chords import pin_pixels
+
 log = logging.getLogger(__name__)
 
-__all__ = ["greedy_sequence"]
+__all__ = ["greedy_sequence", "line_samples", "band_pixels", "cv_half_width"]
 
 
-class _PinChords:
-    """Per-pin concatenation of the pixels of all chords from that pin, built lazily."""
+def line_samples(r0, c0, r1, c1, size, *, nearest=False, spacing=1.0):
+    """ThreadTone's line points: ``int(hypot)`` points from pin to pin, each on its nearest pixel.
 
-    def __init__(self, space, indptr, indices):
-        self.space, self.indptr, self.indices = space, indptr, indices
+    Parameters
+    ----------
+    r0, c0 : int
+        The start pin's pixel.
+    r1, c1 : ndarray of int, shape (k,)
+        The other pins' pixels.
+    size : int
+    nearest : bool
+        Each point on its nearest pixel; False: truncated, as ThreadTone does.
+    spacing : float
+        ``int(hypot / spacing)`` points (1: ThreadTone's).
+
+    Returns
+    -------
+    starts : ndarray of int64, shape (k,)
+        Offset of each chord's first point in ``flat``.
+    flat : ndarray of int32
+        Flat pixel indices, chord after chord (a pixel may come twice).
+    """
+    r1, c1 = np.asarray(r1, dtype=np.float64), np.asarray(c1, dtype=np.float64)
+    dr, dc = r1 - r0, c1 - c0
+    n = np.maximum((np.hypot(dr, dc) / spacing).astype(np.int64), 1)
+    starts = np.concatenate([[0], np.cumsum(n)[:-1]])
+    seg = np.repeat(np.arange(len(n), dtype=np.int32), n)
+    t = np.arange(int(n.sum()), dtype=np.float32)
+    t -= np.repeat(starts.astype(np.float32), n)
+    inv = (1.0 / np.maximum(n - 1, 1)).astype(np.float32)  # linspace: both pins included
+    t *= inv[seg]
+    rnd = np.rint if nearest else np.floor
+    # float32 is exact enough here: coordinates < 4096, steps of at least 1/4096
+    rr = rnd(np.float32(r0) + t * dr.astype(np.float32)[seg])
+    cc = rnd(np.float32(c0) + t * dc.astype(np.float32)[seg])
+    np.clip(rr, 0, size - 1, out=rr)
+    np.clip(cc, 0, size - 1, out=cc)
+    rr *= size
+    rr += cc
+    return starts, rr.astype(np.int32)
+
+
+def cv_half_width(thickness):
+    """Half-width of the band ``cv2.line`` fills for a thickness: ``t / 2``, plus 1/2 when ``t`` is odd.
+
+    OpenCV's ``ThickLine`` offsets the polygon's sides by ``(t + (t & 1)) / 2``
+    pixels from the line and fills it edges included, so ``thickness=3``
+    lowers every pixel within 2 pixels of the thread (5 rows across a
+    horizontal one), with round ends of the same radius.
+    """
+    return thickness / 2.0 + 0.5 * (int(thickness) & 1)
+
+
+def band_pixels(r0, c0, r1, c1, size, half):
+    """Flat pixels whose centres lie within ``half`` of the segment between two pixels (edges included).
+
+    The band is perpendicular to the segment whatever its direction (as
+    ``cv2.line`` draws a thick line), with round ends.
+    """
+    rlo, rhi = int(np.floor(min(r0, r1) - half)), int(np.ceil(max(r0, r1) + half))
+    clo, chi = int(np.floor(min(c0, c1) - half)), int(np.ceil(max(c0, c1) + half))
+    dr, dc = float(r1 - r0), float(c1 - c0)
+    L2 = dr * dr + dc * dc
+    steps = max(abs(dr), abs(dc))
+    # walk the major axis; at each step the band spans a few pixels of the minor axis
+    t = np.arange(-np.ceil(half) - 1, steps + np.ceil(half) + 2)
+    k = np.arange(-int(np.ceil(half * 1.5)) - 1, int(np.ceil(half * 1.5)) + 2)
+    if abs(dr) >= abs(dc):
+        rr = r0 + np.sign(dr or 1.0) * t
+        cc = c0 + (rr - r0) * (dc / dr if dr else 0.0)
+        R = rr[:, None] + 0 * k[None, :]
+        C = np.rint(cc)[:, None] + k[None, :]
+    else:
+        cc = c0 + np.sign(dc) * t
+        rr = r0 + (cc - c0) * (dr / dc)
+        C = cc[:, None] + 0 * k[None, :]
+        R = np.rint(rr)[:, None] + k[None, :]
+    R, C = R.ravel(), C.ravel()
+    # distance from each pixel centre to the segment
+    u = np.clip(((R - r0) * dr + (C - c0) * dc) / max(L2, 1e-12), 0.0, 1.0)
+    d2 = (R - r0 - u * dr) ** 2 + (C - c0 - u * dc) ** 2
+    # OpenCV fills the band's polygon row by row, rounding to the nearest pixel, and draws its sides
+    # with Bresenham lines: a pixel counts when it lies within half a pixel, along the axis most
+    # across the thread, of the band: within half + max(|n_row|, |n_col|) / 2 of the line
+    tol = half + 0.5 * max(abs(dr), abs(dc)) / max(np.sqrt(L2), 1e-12)
+    ok = (d2 <= tol * tol + 1e-9) & (R >= max(rlo, 0)) & (R <= min(rhi, size - 1)) \
+        & (C >= max(clo, 0)) & (C <= min(chi, size - 1))
+    flat = np.unique(R[ok].astype(np.int64) * size + C[ok].astype(np.int64))
+    return flat
+
+
+class _PinLines:
+    """Per pin, the line points of every chord from it, built the first time the pin is visited.
+
+    ``nearest``: points on their nearest pixel (else truncated, as ThreadTone does); ``spacing``:
+    pixels between points (1: ThreadTone's).
+    """
+
+    def __init__(self, space, size, *, nearest=False, spacing=1.0):
+        self.space, self.size, self.nearest, self.spacing = space, size, nearest, spacing
+        self.rc = pin_pixels(space.pin_xy, size)
         self.cache = {}
 
-    def get(self, p):
+    def get_with_counts(self, p):
+        """``(others, flat, starts, counts)``: the pins reachable from ``p`` and their chords' points."""
         if p not in self.cache:
-            row = self.space.index[p]
-            others = np.flatnonzero(row >= 0)
-            chords = row[others]
-            lo, hi = self.indptr[chords], self.indptr[chords + 1]
-            counts = hi - lo
-            starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-            pos = np.arange(counts.sum()) - np.repeat(starts - lo, counts)
-            pix = self.indices[pos]
-            self.cache[p] = (others, pix, starts)
+            others = np.flatnonzero(self.space.index[p] >= 0)
+            r0, c0 = self.rc[p]
+            starts, flat = line_samples(r0, c0, self.rc[others, 0], self.rc[others, 1], self.size,
+                                        nearest=self.nearest, spacing=self.spacing)
+            counts = np.diff(np.append(starts, len(flat))).astype(np.float32)
+            self.cache[p] = (others, flat, starts, counts)
         return self.cache[p]
 
-
-def _thick(space, size, indptr, indices, chord, width):
-    """Flat pixels of a ``width``-pixel-wide line along ``chord`` (offsets across its minor axis)."""
-    pix = indices[indptr[chord]:indptr[chord + 1]].astype(np.int64)
-    i, j = space.ends[chord]
-    dx, dy = space.pin_xy[j] - space.pin_xy[i]
-    r, c = pix // size, pix % size
-    half = (int(width) - 1) // 2
-    rs, cs = [], []
-    for o in range(-half, int(width) - half):
-        if abs(dx) >= abs(dy):  # mostly horizontal: widen along rows
-            rs.append(r + o); cs.append(c)
-        else:
-            rs.append(r); cs.append(c + o)
-    r, c = np.concatenate(rs), np.concatenate(cs)
-    ok = (r >= 0) & (r < size) & (c >= 0) & (c < size)
-    return r[ok] * size + c[ok]
+    def get(self, p):
+        return self.get_with_counts(p)[:3]
 
 
-def greedy_sequence(space, size, indptr, indices, gray, mask, lines, *, start_pin=0,
-                    weight=15.0, width=3, min_loop=3, reference_radius=500.0):
-    """ThreadTone's greedy pin sequence.
+def greedy_sequence(space, size, gray, mask, lines, *, start_pin=0, weight=15.0, width=3, min_loop=3,
+                    reference_radius=500.0):
+    """ThreadTone's greedy pin sequence (see the module notes).
 
     Parameters
     ----------
     space : ChordSpace
     size : int
-    indptr, indices : ndarray
-        Chord pixels.
     gray : ndarray of float, shape (size, size)
         Gray levels in [0, 255].
     mask : ndarray of bool, shape (size, size)
@@ -84,9 +176,9 @@ def greedy_sequence(space, size, indptr, indices, gray, mask, lines, *, start_pi
     weight : float
         Darkness removed along a drawn chord, at ``reference_radius``.
     width : int
-        Width in pixels of the removed line.
+        ``cv2.line`` thickness of the band lowered along a drawn chord (see :func:`cv_half_width`).
     min_loop : int
-        The last ``min_loop`` pins are excluded.
+        The pins of the last ``min_loop`` chosen chords are excluded.
     reference_radius : float or None
         Picture radius at which ``weight`` holds (ThreadTone's 500); the
         weight used is ``weight * R / reference_radius`` with ``R = (size - 1) / 2``.
@@ -98,16 +190,18 @@ def greedy_sequence(space, size, indptr, indices, gray, mask, lines, *, start_pi
     """
     if reference_radius:
         weight = weight * ((size - 1) / 2.0) / float(reference_radius)
+    half = cv_half_width(width)
     work = np.where(mask, 255.0 - np.asarray(gray, dtype=np.float32), 0.0).astype(np.float32).ravel()
-    pins = _PinChords(space, indptr, indices)
+    pins = _PinLines(space, size)
+    rc = pins.rc
     seq = [int(start_pin)]
     cur = int(start_pin)
     for _ in range(int(lines)):
         others, pix, starts = pins.get(cur)
         if not len(others):
             break
-        sums = np.add.reduceat(work.take(pix), starts)  # every chord has >= 1 pixel
-        for q in seq[-min_loop:]:
+        sums = np.add.reduceat(work.take(pix), starts)  # every chord has >= 1 point
+        for q in seq[1:][-min_loop:]:  # ThreadTone's previousPins: the last chosen pins
             k = int(np.searchsorted(others, q))
             if k < len(others) and others[k] == q:
                 sums[k] = -np.inf
@@ -117,8 +211,7 @@ def greedy_sequence(space, size, indptr, indices, gray, mask, lines, *, start_pi
                      cur, len(seq) - 1)
             break
         nxt = int(others[k])
-        chord = int(space.index[cur, nxt])
-        work[_thick(space, size, indptr, indices, chord, width)] -= weight
+        work[band_pixels(rc[cur, 0] + 1, rc[cur, 1] + 1, rc[nxt, 0] + 1, rc[nxt, 1] + 1, size, half)] -= weight
         seq.append(nxt)
         cur = nxt
     return seq

@@ -29,7 +29,7 @@ from ..errors import BadInput
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "parse_crop", "MAX_PIXELS"]
+__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "fit_crop", "parse_crop", "MAX_PIXELS"]
 
 MAX_PIXELS = 1_000_000_000      # refuse larger pictures outright
 MAX_DECODED_BYTES = 1_200_000_000  # PIL's decoded image must fit in this
@@ -78,6 +78,33 @@ def sha256_file(path):
 def default_crop(width, height):
     """The largest centred circle (or square): ``{"cx", "cy", "r"}`` in source pixels."""
     return {"cx": width / 2.0, "cy": height / 2.0, "r": min(width, height) / 2.0}
+
+
+def fit_crop(path, frame="circle"):
+    """The crop that holds the whole picture, letterboxed: centred, radius half the diagonal (circle) or half
+    the longer side (square); what lies outside the picture is white."""
+    im = _open(path, "picture")
+    w, h = im.size
+    try:
+        if int(im.getexif().get(0x0112, 1)) in (5, 6, 7, 8):
+            w, h = h, w
+    except Exception:  # noqa: BLE001 -- a damaged EXIF block: as stored
+        pass
+    r = float(np.hypot(w, h)) / 2.0 if frame == "circle" else max(w, h) / 2.0
+    return {"cx": w / 2.0, "cy": h / 2.0, "r": r}
+
+
+def threadtone_crop(path):
+    """ThreadTone's crop: the largest centred square, its corner on whole pixels (``int((w - side) / 2)``)."""
+    im = _open(path, "picture")
+    w, h = im.size
+    try:
+        if int(im.getexif().get(0x0112, 1)) in (5, 6, 7, 8):
+            w, h = h, w
+    except Exception:  # noqa: BLE001 -- a damaged EXIF block: as stored
+        pass
+    side = min(w, h)
+    return {"cx": int((w - side) / 2) + side / 2.0, "cy": int((h - side) / 2) + side / 2.0, "r": side / 2.0}
 
 
 def parse_crop(text):

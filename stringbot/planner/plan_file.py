@@ -7,6 +7,11 @@ A plan is JSON::
      "sequence": [0, 151, 17, ...], "method": "fitness", "parameters": {...},
      "source": {"path": .., "sha256": .., "width": .., "height": ..}, "stats": {...}}
 
+Optional since the thread model: ``diameter_mm`` (the frame's diameter, the
+side of a square frame) and ``thread_mm`` (the thread's width), from which
+``render`` draws the plan as woven; a plan without them is read with the
+defaults, 500 mm and 0.25 mm.
+
 A disconnected plan (``--disconnected``) has ``"connected": false`` and a chord
 set ``"chords": [[i, j], ...]`` instead of a sequence; it can be rendered and
 scored but not wound.  Unknown fields are ignored (kept in ``extra``); a wrong
@@ -38,6 +43,7 @@ import numpy as np
 
 from .._files import write_atomic
 from ..errors import BadInput
+from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
 
 __all__ = ["Plan", "Layer", "read_plan", "write_plan", "FORMAT", "VERSION", "VERSIONS", "MONO_COLOR",
            "MONO_BACKGROUND", "require_one_layer"]
@@ -102,6 +108,8 @@ class Plan:
         Where each layer starts in ``sequence`` (the first is 0).
     background : str
         The board, ``"#rrggbb"``.
+    diameter_mm, thread_mm : float
+        The frame's diameter and the thread's width (see :mod:`stringbot.planner.thread`).
     """
 
     pins: int
@@ -116,9 +124,15 @@ class Plan:
     connected: bool = True
     chords: list = field(default_factory=list)
     extra: dict = field(default_factory=dict)
+    diameter_mm: float = DEFAULT_DIAMETER_MM
+    thread_mm: float = DEFAULT_THREAD_MM
     colors: list = field(default_factory=lambda: [MONO_COLOR])
     layer_starts: list = field(default_factory=lambda: [0])
     background: str = MONO_BACKGROUND
+
+    def thread_model(self):
+        """The plan's :class:`~stringbot.planner.thread.ThreadModel`."""
+        return ThreadModel(diameter_mm=float(self.diameter_mm), thread_mm=float(self.thread_mm))
 
     @classmethod
     def from_layers(cls, layers, *, background=MONO_BACKGROUND, **kw):
@@ -168,6 +182,8 @@ class Plan:
             "version": self.version,
             "pins": int(self.pins),
             "frame": self.frame,
+            "diameter_mm": float(self.diameter_mm),
+            "thread_mm": float(self.thread_mm),
             "pin_xy": [[round(float(x), 6), round(float(y), 6)] for x, y in np.asarray(self.pin_xy)],
             "crop": self.crop,
             "connected": bool(self.connected),
@@ -317,17 +333,27 @@ def plan_from_json(doc, *, where="plan"):
                     or c[0] == c[1]):
                 raise BadInput(f"{where}: chords[{k}] is {c!r}; expected [i, j] with i != j in 0..{pins - 1}")
             chords.append((c[0], c[1]))
+    size = {}
+    for key, default in (("diameter_mm", DEFAULT_DIAMETER_MM), ("thread_mm", DEFAULT_THREAD_MM)):
+        v = doc.get(key, default)
+        if not (_is_num(v) and v > 0):
+            raise BadInput(f"{where}: field {key!r} is {v!r}; expected a number of millimetres > 0")
+        size[key] = float(v)
+    if size["thread_mm"] >= size["diameter_mm"]:
+        raise BadInput(f"{where}: field 'thread_mm' ({size['thread_mm']:g}) is not less than 'diameter_mm' "
+                       f"({size['diameter_mm']:g}); expected a thread thinner than the frame")
     method = _need(doc, "method", str, where, "a string")
     parameters = _need(doc, "parameters", dict, where, "an object")
     source = _need(doc, "source", dict, where, "an object {path, sha256, width, height}")
     stats = _need(doc, "stats", dict, where, "an object")
     known = {"format", "version", "pins", "frame", "pin_xy", "crop", "connected", "sequence",
-             "chords", "method", "parameters", "source", "stats", "layers", "background"}
+             "chords", "method", "parameters", "source", "stats", "diameter_mm", "thread_mm", "layers",
+             "background"}
     extra = {k: v for k, v in doc.items() if k not in known}
     return Plan(pins=pins, frame=frame, pin_xy=np.asarray(pin_xy, dtype=float), crop=crop,
                 sequence=list(sequence), method=method, parameters=parameters, source=source,
                 stats=stats, connected=connected, chords=chords, extra=extra, colors=colors,
-                layer_starts=starts, background=background)
+                layer_starts=starts, background=background, **size)
 
 
 def _check_sequence(sequence, pins, where):

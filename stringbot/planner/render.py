@@ -1,8 +1,12 @@
-"""Drawing a plan: the paper's binary drawing.
+"""Drawing a plan: as woven (the default), or the paper's binary drawing.
 
-A binary drawing is black 1-pixel lines (one per chord) on white, pins at
-``pin_xy * (size - 1)`` rounded to pixel centres: the drawing the paper scores
-(section 4.1, :mod:`stringbot.planner.scoring`).
+*As woven* (:func:`draw_woven`): the threads drawn under the thread model
+(:mod:`stringbot.planner.thread`) at the plan's real thread width, black on a
+white board, so the picture predicts the piece.  *Binary* (:func:`draw`):
+black 1-pixel lines (one per chord) on white, pins at ``pin_xy * (size - 1)``
+rounded to pixel centres: the drawing the paper scores (section 4.1,
+:mod:`stringbot.planner.scoring`); a 1-pixel line at 1001 px is a 0.5 mm
+thread on a 500 mm frame, so it looks darker than the piece will.
 """
 
 import io
@@ -14,7 +18,7 @@ from .chords import line_pixels, pin_pixels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw", "png_bytes"]
+__all__ = ["draw", "draw_woven", "png_bytes"]
 
 
 def draw(plan_or_chords, pin_xy=None, *, size=1001):
@@ -44,6 +48,27 @@ def draw(plan_or_chords, pin_xy=None, *, size=1001):
         _, flat = line_pixels(rc[c[:, 0], 0], rc[c[:, 0], 1], rc[c[:, 1], 0], rc[c[:, 1], 1], size)
         img[flat] = 0
     return img.reshape(size, size)
+
+
+def draw_woven(plan, *, size=1001, board=255, thread=0):
+    """Draw a plan as woven: its threads at their real width, coverage capped at 1, over the board.
+
+    Parameters
+    ----------
+    plan : Plan
+        Its ``diameter_mm`` and ``thread_mm`` give the thread's width.
+    size : int
+    board, thread : int
+        Gray levels 0..255 of the board and the thread.
+
+    Returns
+    -------
+    ndarray of uint8, shape (size, size)
+    """
+    from .thread import composite, coverage
+
+    cov = coverage(plan.chord_list(), plan.pin_xy, size=size, width_px=plan.thread_model().width_px(size))
+    return np.clip(np.rint(composite(cov, board=float(board), thread=float(thread))), 0, 255).astype(np.uint8)
 
 
 def png_bytes(image):

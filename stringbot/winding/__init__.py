@@ -14,9 +14,11 @@ The wind loop drives a machine through a *step-level link*; the G-code link
     Check for alarms (refuse or clear them), home if ``home``, set modal state.
 ``execute(steps, on_executed) -> None``
     Run the motion steps (``stringbot.motion.HookStep``) in order; call
-    ``on_executed(step)`` for each one *only once the machine has executed it*
-    (G-code: its sync line answered; a servo: its position read back).  The
-    link may keep later steps flowing meanwhile.  Returns when all are executed.
+    ``on_executed(step)`` for each one *only once the machine has executed it
+    and reports standing where it was meant to* (G-code: its sync line
+    answered, then ``?`` / ``M114`` compared with the plan after every move; a
+    servo: its position read back).  A machine anywhere else raises
+    ``MachineFailure``.  Returns when all are executed.
 ``execute_lines(step, lines, on_executed)``
     G-code links only: run ``lines`` as the rest of ``step`` (resume mid-step).
 ``finish() -> None``
@@ -32,13 +34,16 @@ The wind loop drives a machine through a *step-level link*; the G-code link
 ``stop_point() -> {"step_index", "move"[, "position"]}``
     The step not yet handed over and the move of it that was running, for the
     journal's stop record; no I/O.  A link that knows its last trusted
-    ``position`` without asking the device (a servo link: the last reading
-    with torque on) adds it; the stop record of a failure keeps it, and a
-    resume re-bases a servo ring from it (see ``position_tolerance`` below).
+    ``position`` without asking the device adds it: a G-code link the
+    position it measured at rest with nothing sent since (the held position
+    after Ctrl-C, the reported one after a failed check), a servo link its
+    last reading with torque on.  The stop record keeps it; a resume takes it
+    as the truth after a reboot (see ``position_tolerance`` below).
 ``position_tolerance``
-    Optional attribute ``(ring_deg, head_mm)``: how far ``position()`` may be
-    from a planned point the machine arrived at; resume locates the machine on
-    the journal's path within it (at least 0.01).
+    Attribute ``(ring_deg, head_mm)``: how far ``position()`` may be from a
+    planned point the machine arrived at (G-code: one step of each axis plus
+    rounding; a servo: its arrival tolerance); the checks after every move and
+    resume's search of the journal's path use it.
 ``on_move``
     Attribute: ``callable(step, move_index)`` set by the wind loop, called once a
     move has been executed (the journal records moves that leave the head OUT).
@@ -46,9 +51,11 @@ The wind loop drives a machine through a *step-level link*; the G-code link
     True once the device reset, lost power or alarmed: its position is not to
     be trusted.
 
-For resume, a G-code link also offers ``reconnect() -> position_lost`` (settle,
-identify, unlock), ``restore_modal()``, ``move_to(ring, head, axis=)``,
-``home()`` and ``set_position(ring_deg, head_mm)``; a servo link offers
+For resume, a G-code link also offers ``reconnect() -> Reconnected`` (settle,
+identify, unlock; what it learned: banner, alarm, machine position),
+``restore_modal()``, ``move_to(ring, head, axis=)`` (one axis, verified),
+``home(axes=None)``, ``jog(ring=, head=)`` and ``set_position(ring_deg,
+head_mm)`` (declared, then read back); a servo link offers
 ``prepare(home=False, resume_at=(ring_deg, head_mm))`` (re-base the ring's turn
 count from the journal) and returns the position read back.
 ``close()``; attributes ``info`` (FirmwareInfo), ``lines_sent`` (int).

@@ -28,6 +28,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .._files import check_output_path, output_error, problem
 from ..errors import BadInput
 
 __all__ = ["Journal", "JournalState", "read_journal", "journal_path_for"]
@@ -77,7 +78,12 @@ def read_journal(path):
                        "(wind without --resume to start, or give --journal)")
     if path.is_dir():
         raise BadInput(f"journal path {str(path)!r} is a folder; expected a journal file")
-    data = path.read_bytes()
+    if not path.is_file():            # a FIFO would block the read, a device would never end
+        raise BadInput(f"journal {str(path)!r} is not a regular file; expected a journal file")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise BadInput(f"journal {str(path)!r} cannot be read: {problem(exc)}") from None
     lines = data.split(b"\n")
     complete, tail = lines[:-1], lines[-1]
     records = []
@@ -217,16 +223,19 @@ class Journal:
         """A new journal.  ``durable=False`` skips fsync: only for a simulated machine that
         lives in this process (it dies with the process, so there is nothing to resume)."""
         path = Path(path)
-        if path.is_dir():
-            raise BadInput(f"journal path {str(path)!r} is a folder; expected a file path")
-        if not path.parent.is_dir():
-            raise BadInput(f"journal folder {str(path.parent)!r} does not exist; create it first")
+        check_output_path(path, what="journal")   # a regular file (through a symlink) or nothing yet
         if path.exists():
             _check_overwritable(path, plan_path)
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        j = cls(path, fd, durable)
-        j.append({"kind": "start", "format": FORMAT, "version": VERSION, "plan": str(plan_path),
-                  "plan_sha256": plan_sha256, "machine": machine, "steps": steps})
+        fd = None
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)   # less the umask
+            j = cls(path, fd, durable)
+            j.append({"kind": "start", "format": FORMAT, "version": VERSION, "plan": str(plan_path),
+                      "plan_sha256": plan_sha256, "machine": machine, "steps": steps})
+        except OSError as exc:
+            if fd is not None:
+                os.close(fd)
+            raise output_error(path, exc, what="journal") from None
         _fsync_dir(path.parent)
         return j
 
@@ -243,9 +252,12 @@ class Journal:
                 json.loads(data[last:keep])
             except ValueError:
                 keep = last                        # a torn last line that ended in a newline
-        if keep < len(data):
-            os.truncate(path, keep)
-        fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+        try:
+            if keep < len(data):
+                os.truncate(path, keep)
+            fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+        except OSError as exc:
+            raise output_error(path, exc, what="journal") from None
         return cls(path, fd, durable)
 
     def append(self, record):

@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 
 from ..errors import Interrupted, MachineFailure
+from ..links import LinkState
 from ..motion import move_seconds
 
 __all__ = ["WindState", "Progress", "WindResult", "Winder", "step_seconds"]
@@ -111,12 +112,13 @@ class Winder:
         self._t0 = None
         self._first = 0
         self._est_done = 0.0
+        self._journal_broken = False
 
     # ---- the run ---------------------------------------------------------------------
     def start(self, *, home):
         """Identify the firmware, check alarms, home if asked, set modal state."""
         self.state = WindState.CONNECTING
-        info = self.link.identify()
+        info = self.link.info if _identified(self.link) else self.link.identify()
         self.state = WindState.PREPARING
         with self.stopping_on_ctrl_c("while preparing (homing)"):
             self.link.prepare(home=home)
@@ -189,7 +191,7 @@ class Winder:
     # ---- bookkeeping -------------------------------------------------------------------
     def _executed(self, step):
         if self.journal is not None:
-            self.journal.done(step.index, step.pin)
+            self._journaled(self.journal.done, step.index, step.pin, after=step)
         self.done = step.index + 1
         self._est_done += self.est[step.index]
         if self.progress is not None:
@@ -198,7 +200,23 @@ class Winder:
     def _moved(self, step, move):
         """Move ``move`` of ``step`` executed (journaled so that resume knows where the head is)."""
         if move + 1 < len(step.moves) and self._outside(step.moves[move].head_mm):
-            self.journal.append({"kind": "move", "step": step.index, "move": move})
+            self._journaled(self.journal.append, {"kind": "move", "step": step.index, "move": move})
+
+    def _journaled(self, write, *args, after=None):
+        """Write a journal record; if the disk refuses (full, read-only, gone), stop the machine first
+        and fail: the journal is the truth, and a winding it cannot follow must not go on."""
+        try:
+            write(*args)
+        except OSError as exc:
+            from .._files import problem
+            self._journal_broken = True
+            try:
+                self.link.hold()
+            except (MachineFailure, KeyboardInterrupt) as stop:
+                log.warning("could not stop the machine cleanly: %s", stop)
+            what = f"after step {after.index + 1} (pin {after.pin})" if after is not None else "mid-step"
+            raise MachineFailure(f"cannot write the journal {str(self.journal.path)!r}: {problem(exc)}; the "
+                                 f"machine is stopped {what}; make room, then resume") from None
 
     def _outside(self, head_mm):
         """Head past the pin circle (only those moves are journaled: they decide the head side)."""
@@ -220,6 +238,8 @@ class Winder:
 
     def _catch_up(self):
         """Journal the steps the link confirmed while stopping."""
+        if self._journal_broken:
+            return                # they stay unjournaled: resume finds them from the machine's position
         try:
             for step in self.link.take_executed():
                 self._executed(step)
@@ -251,23 +271,26 @@ class Winder:
     def _failed(self, exc):
         self.state = WindState.FAILED
         self._catch_up()
+        settle = getattr(self.link, "settle_after_failure", None)
+        if settle is not None:
+            settle()
         self._stop_record("failed", str(exc), None)
 
     def _stop_record(self, reason, message, status):
         if self.journal is None:
             return
         step, pin = self._current()
-        pos = getattr(status, "mpos", None) if status is not None else None
+        pos = None
         point = None
         if hasattr(self.link, "stop_point"):
             try:
                 stop = self.link.stop_point()
                 point = {"step_index": stop["step_index"], "move": stop["move"]}
-                if pos is None:
-                    # a failure (no hold, no status): a link that knows its last trusted
-                    # position without I/O (a servo link's last reading with torque on)
-                    # gives it here; it is the resume's re-base hint after a power loss
-                    pos = stop.get("position")
+                # where the link last knew the machine without asking it now: a G-code link's
+                # position measured at rest with nothing sent since (the held position after
+                # Ctrl-C), a servo link's last reading with torque on; the resume's truth
+                # after a reboot or a power loss
+                pos = stop.get("position")
             except Exception:
                 point = None
         try:
@@ -275,8 +298,8 @@ class Winder:
                                  "step": step, "pin": pin, "next_step": self.done, "at": point,
                                  "position_lost": bool(getattr(self.link, "position_lost", False)),
                                  "position": list(pos) if pos else None})
-        except OSError:
-            log.exception("could not write the journal's stop record")
+        except OSError as exc:
+            log.warning("could not write the journal's stop record: %s", exc)
 
 
 def _firmware_name(link):
@@ -284,3 +307,8 @@ def _firmware_name(link):
     if info is None:
         return "?"
     return f"{info.name} {info.version}".strip()
+
+
+def _identified(link):
+    """The link has just identified the firmware (e.g. for the settings check): no need to ask again."""
+    return getattr(link, "info", None) is not None and getattr(link, "state", None) is LinkState.IDENTIFIED

@@ -10,11 +10,15 @@ from pathlib import Path
 
 from firmware_protocol.machine import load_machine
 
+from .._files import check_output_path
 from ..errors import BadInput
 from ..links import open_link, sim_url
+from ..links.settings_check import require_agreement
 from ..motion import hook_steps
 from ..planner import read_plan
+from .approach import approach
 from .journal import Journal, journal_path_for, read_journal
+from .locate import tolerance
 from .loop import Winder
 
 __all__ = ["wind_plan", "Job", "load_job", "dry_run_problem"]
@@ -93,6 +97,7 @@ def _check_record_path(record, plan_path):
     if not record.parent.is_dir():
         raise BadInput(f"record folder {str(record.parent)!r} does not exist; create it first "
                        f"(for --record {str(record)!r})")
+    check_output_path(record, what="--record")     # a device, FIFO or socket is never replaced
     if record.exists() and record.stat().st_size > 0:
         import json
         try:
@@ -134,8 +139,13 @@ def _new_journal(job):
                           machine=job.machine.name, steps=len(job.steps), durable=not job.fresh_world)
 
 
-def wind_plan(job, *, confirm=None, progress=None, link_options=None):
+def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=False):
     """Wind ``job`` from its first step.
+
+    ``check`` (``stringbot wind`` sets it unless ``--no-check``): first compare
+    the firmware's settings with the machine file
+    (:func:`stringbot.links.settings_check.require_agreement`); a machine that
+    disagrees raises ``SettingsDisagree`` before anything moves.
 
     Returns
     -------
@@ -149,6 +159,8 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None):
     link = None
     try:
         link = open_link(job.url, job.machine, **(link_options or {}))
+        if check:
+            require_agreement(link, job.machine)
         winder = Winder(link, job.steps, job.machine, journal=journal, progress=progress,
                         confirm=confirm)
         winder.start(home=job.machine["controller.homing"])
@@ -159,6 +171,9 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None):
         else:                       # the thread's colour, and a spool change before each later layer
             from .layers import Threads
             winder.threads = Threads(job, journal, confirm=confirm)
+        with winder.stopping_on_ctrl_c("while moving to the start"):
+            approach(link, job.machine, (first.moves[0].ring_deg, job.machine["head.in_mm"]),
+                     tolerance(link, job.machine))
         return winder.wind(0)
     finally:
         if link is not None:

@@ -1,0 +1,141 @@
+"""The default planner: residual choice under the thread model, refinement, auto lines, masks, --fit."""
+
+import numpy as np
+import pytest
+
+from stringbot.errors import BadInput
+from stringbot.planner.build import plan_picture
+from stringbot.planner.chords import chord_space
+from stringbot.planner.fitness import frame_mask
+from stringbot.planner.greedy import _PinLines
+from stringbot.planner.refine import refine_sequence
+from stringbot.planner.residual import Canvas, residual_sequence
+from stringbot.planner.scoring import woven_error
+
+from planner_helpers import picture
+
+
+def disc_picture(size=101):
+    """A dark disc off centre and a mid-gray band on white."""
+    y, x = np.mgrid[:size, :size]
+    g = np.full((size, size), 255.0)
+    g[(x - 0.35 * size) ** 2 + (y - 0.4 * size) ** 2 < (0.18 * size) ** 2] = 20.0
+    g[int(0.7 * size):int(0.8 * size), :] = 140.0
+    return g
+
+
+def canvas_of(g, space, width_px=0.6):
+    size = g.shape[0]
+    mask = frame_mask(size, "circle")
+    return Canvas(np.where(mask, 1 - g / 255.0, 0.0), mask.astype(float), space.pin_xy, width_px)
+
+
+def test_residual_draws_where_the_picture_is_dark_and_stops_by_itself():
+    g = disc_picture()
+    space = chord_space(80)
+    canvas = canvas_of(g, space)
+    e0 = canvas.error()
+    seq = residual_sequence(canvas, space, "auto")
+    assert 20 < len(seq) - 1 < 5000
+    assert canvas.error() < 0.7 * e0
+    assert all(a != b for a, b in zip(seq[:-1], seq[1:]))
+    # the kept canvas is the drawing of the kept sequence
+    again = canvas_of(g, space)
+    again.apply(chords_in=list(zip(seq[:-1], seq[1:])))
+    assert again.error() == pytest.approx(canvas.error(), rel=1e-9)
+    # darker where the picture is dark
+    S = canvas.S.reshape(g.shape)
+    assert S[g < 50].mean() > 3 * S[g > 250].mean()
+
+
+def test_refinement_never_makes_the_picture_worse_and_keeps_one_thread():
+    g = disc_picture()
+    space = chord_space(80)
+    for lines, remove in ((150, False), ("auto", True)):
+        canvas = canvas_of(g, space)
+        pl = _PinLines(space, g.shape[0], nearest=True)
+        seq = residual_sequence(canvas, space, lines, pin_lines=pl)
+        before = canvas.error()
+        out, st = refine_sequence(canvas, seq, pl, budget=len(seq), remove=remove)
+        after = canvas.error()
+        assert after <= before + 1e-9 and st["error_drop"] >= 0
+        assert after == pytest.approx(before - st["error_drop"], rel=1e-6, abs=1e-9)
+        assert st["rerouted"] + st["removed"] > 0  # it found something to do on this picture
+        assert all(a != b for a, b in zip(out[:-1], out[1:])) and out[0] == seq[0]
+        if not remove:
+            assert len(out) == len(seq)
+        again = canvas_of(g, space)
+        again.apply(chords_in=list(zip(out[:-1], out[1:])))
+        assert again.error() == pytest.approx(after, rel=1e-9)
+
+
+def test_default_method_beats_greedy_and_fitness_as_woven():
+    g = disc_picture(121)
+    pic = picture(g)
+    woven = picture(np.asarray(
+        __import__("PIL.Image", fromlist=["Image"]).fromarray(g.astype(np.uint8)).resize((512, 512)), float))
+    errs = {}
+    for method in ("residual", "greedy", "fitness"):
+        p = plan_picture("x", pins=80, size=121, method=method, picture=pic, lines=400)
+        errs[method] = woven_error(p.chord_list(), p.pin_xy, woven.gray, frame="circle")
+    assert errs["residual"] < min(errs["greedy"], errs["fitness"]), errs
+
+
+def test_thicker_thread_needs_fewer_lines():
+    pic = picture(disc_picture())
+    thin = plan_picture("x", pins=80, size=101, picture=pic, thread_mm=0.5)
+    thick = plan_picture("x", pins=80, size=101, picture=pic, thread_mm=2.0)
+    assert thick.stats["lines"] < 0.6 * thin.stats["lines"]
+    assert thick.thread_mm == 2.0 and thick.parameters["thread_px"] == pytest.approx(2.0 / 500 * 101)
+
+
+def test_importance_mask_weighs_the_error(tmp_path):
+    from PIL import Image
+
+    size = 101
+    g = np.full((size, size), 255.0)
+    g[30:70, 15:45] = 120.0
+    g[30:70, 56:86] = 120.0  # two equal gray patches, left and right
+    src = tmp_path / "pic.png"
+    Image.fromarray(g.astype(np.uint8)).save(src)
+    m = np.zeros((size, size), np.uint8)
+    m[:, :50] = 255  # the left one is important
+    mask = tmp_path / "mask.png"
+    Image.fromarray(m).save(mask)
+    plain = plan_picture(src, pins=80, size=size, lines=120)
+    weighted = plan_picture(src, pins=80, size=size, lines=120, importance=mask)
+
+    def left_share(plan):
+        from stringbot.planner.thread import coverage
+        c = coverage(plan.chord_list(), plan.pin_xy, size=size, width_px=1.0, saturated=False)
+        return c[30:70, 15:45].sum() / (c[30:70, 15:45].sum() + c[30:70, 56:86].sum())
+
+    assert left_share(weighted) > left_share(plain) + 0.03
+
+
+def test_fit_letterboxes_the_whole_picture(tmp_path):
+    from PIL import Image
+
+    g = np.full((60, 180), 255, np.uint8)
+    g[:, :20] = 0  # a dark bar at the far left: outside the largest centred circle
+    g[20:40, 80:100] = 100
+    src = tmp_path / "wide.png"
+    Image.fromarray(g).save(src)
+    centred = plan_picture(src, pins=80, size=101, lines=60)
+    fit = plan_picture(src, pins=80, size=101, lines=60, fit=True)
+    assert centred.crop["r"] == 30
+    assert fit.crop == {"cx": 90.0, "cy": 30.0, "r": pytest.approx(np.hypot(180, 60) / 2)}
+    from stringbot.planner.thread import coverage
+    c = coverage(fit.chord_list(), fit.pin_xy, size=200, width_px=1.0, saturated=False)
+    bar = c[72:128, 7:24].mean()  # where the bar lies in the letterboxed crop
+    board = c[10:55, 60:140].mean()  # white above the picture
+    assert bar > 3 * board
+    square = plan_picture(src, pins=80, size=101, lines=60, fit=True, frame="square")
+    assert square.crop["r"] == 90
+    with pytest.raises(BadInput, match="--fit and --crop"):
+        plan_picture(src, pins=80, size=101, fit=True, crop={"cx": 1, "cy": 1, "r": 5})
+
+
+def test_blank_picture_is_refused():
+    with pytest.raises(BadInput, match="nothing to draw"):
+        plan_picture("x", pins=40, size=101, picture=picture(np.full((101, 101), 255.0)))
