@@ -2,9 +2,10 @@
 
 The threads are the user's (``--colors black,#b22222,...``) or picked from
 the picture (``auto:N``, :func:`stringbot.planner.palette.auto_palette`).
-The layers are wound in order of their contrast with the board: the thread
-nearest the board's colour first (at the bottom), the one farthest from it
-last (on top), where the darkest detail of a picture on a light board lies;
+The layers are wound in order of their lightness contrast with the board (CIE
+L*): the thread nearest the board's lightness first (at the bottom), the one
+farthest from it last (on top), where the darkest detail of a picture on a
+light board lies;
 of the six orders of three threads it was the best or within 0.1 CIEDE2000
 of the best on four test pictures (docs/planner.md, "Colour").  A thread
 that would lower the error nowhere gets no layer (the plan says so in
@@ -19,7 +20,7 @@ import numpy as np
 from ..errors import BadInput
 from .chords import chord_pixels, chord_space
 from .image import read_picture
-from .palette import WHITE, auto_palette, delta_e, hex_to_rgb, to_linear
+from .palette import WHITE, auto_palette, hex_to_rgb, to_linear
 from .plan_file import Layer, Plan
 from .progress import report
 from .thread import ThreadModel
@@ -47,8 +48,14 @@ def auto_colour_lines(gray, mask, background, colors):
 
 
 def layer_order(colors, background):
-    """Winding order: the thread nearest the board first (bottom), the farthest last (top)."""
-    return sorted(colors, key=lambda c: delta_e(c, background))
+    """Winding order: by lightness contrast with the board (CIE L*), the nearest first (at the bottom)."""
+    from .colour import lab
+
+    def contrast(c):
+        both = lab(to_linear(np.stack([hex_to_rgb(c), hex_to_rgb(background)])))
+        return abs(float(both[0, 0] - both[1, 0]))
+
+    return sorted(colors, key=contrast)
 
 
 def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=401, crop=None,
@@ -114,7 +121,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     t_setup = time.perf_counter()
     weights = chord_weights_px(space, size, model.width_px(size))
     cm = ColourModel(to_linear(pic.rgb.reshape(-1, 3)), mask.ravel().astype(np.float32),
-                     to_linear(hex_to_rgb(background)), linear_colors(colors))
+                     to_linear(hex_to_rgb(background)), linear_colors(colors), nominal=float(np.median(weights)))
     start_err = cm.error()
     report("colour")
     seqs = joint_greedy(space, indptr, indices, cm, weights, k, run=run, sample=sample,

@@ -29,8 +29,8 @@ __all__ = ["threads", "parse_color", "parse_colors", "parse_background", "to_lin
 
 BLACK, WHITE = "#000000", "#ffffff"
 MAX_COLORS = 8
-#: A thread closer to the board than this (CIEDE2000) would not be seen on it.
-MIN_DELTA_E = 5.0
+#: A thread closer to the board than this (CIE76) would hardly be seen on it.
+MIN_DELTA_E = 8.0
 _BOARDS = {"white": WHITE, "black": BLACK}
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6}|[0-9a-fA-F]{3})$")
 
@@ -106,11 +106,11 @@ def parse_background(text):
 
 
 def delta_e(hex_a, hex_b):
-    """CIEDE2000 between two colours."""
-    from skimage.color import deltaE_ciede2000, rgb2lab
+    """CIE76 (Euclidean CIELAB) difference between two colours."""
+    from .colour import lab
 
-    lab = rgb2lab(np.stack([hex_to_rgb(hex_a), hex_to_rgb(hex_b)])[None])[0]
-    return float(deltaE_ciede2000(lab[0], lab[1]))
+    pair = lab(to_linear(np.stack([hex_to_rgb(hex_a), hex_to_rgb(hex_b)])))
+    return float(np.linalg.norm(pair[0] - pair[1]))
 
 
 def parse_colors(text, *, background=WHITE):
@@ -121,7 +121,7 @@ def parse_colors(text, *, background=WHITE):
     BadInput
         Unknown name, bad hex, an empty list, the same colour twice, more than
         :data:`MAX_COLORS` threads, ``auto:N`` with N outside 1..MAX_COLORS, a
-        thread the board would hide (CIEDE2000 below :data:`MIN_DELTA_E`).
+        thread the board would hide (CIE76 below :data:`MIN_DELTA_E`).
     """
     raw = str(text).strip()
     if raw.lower().startswith("auto"):
@@ -147,27 +147,6 @@ def parse_colors(text, *, background=WHITE):
     return colors
 
 
-def _kmeans(x, k, *, iters=20, rng=None):
-    """Plain k-means (Lloyd) with k-means++ seeding; returns (centres, labels)."""
-    rng = np.random.default_rng(0 if rng is None else rng)
-    n = len(x)
-    k = min(k, n)
-    centres = [x[rng.integers(n)]]
-    for _ in range(1, k):
-        d2 = np.min(((x[:, None, :] - np.asarray(centres)[None]) ** 2).sum(-1), axis=1)
-        p = d2 / d2.sum() if d2.sum() > 0 else None
-        centres.append(x[rng.choice(n, p=p)])
-    centres = np.asarray(centres)
-    for _ in range(iters):
-        labels = np.argmin(((x[:, None, :] - centres[None]) ** 2).sum(-1), axis=1)
-        new = np.array([x[labels == j].mean(axis=0) if np.any(labels == j) else centres[j] for j in range(k)])
-        if np.allclose(new, centres):
-            break
-        centres = new
-    labels = np.argmin(((x[:, None, :] - centres[None]) ** 2).sum(-1), axis=1)
-    return centres, labels
-
-
 _SAMPLE = 800
 _GRID = {2: 16, 3: 12, 4: 8, 5: 5, 6: 4}  # divisions of the mixing simplex, by its vertices
 
@@ -190,20 +169,17 @@ def _gamut_distance(lab_pixels, vertices_linear, grid):
     return cKDTree(lab(grid @ vertices_linear)).query(lab_pixels)[0]
 
 
-def auto_palette(rgb, n, *, background=WHITE, mask=None, rng=None, method="gamut"):
+def auto_palette(rgb, n, *, background=WHITE, mask=None, rng=None):
     """``n`` thread colours for a picture.
 
-    ``gamut`` (default): forward selection from the thread list.  Every
-    colour a piece can show is a mix of the board and its threads (in linear
-    light; any coverage of any layer order reaches the whole simplex of board
-    and threads), so threads are added one at a time, each the one that
-    brings the picture's pixels (a sample of 800 from the frame) nearest,
-    on average in CIELAB, to the mixes of the board and the threads chosen so
-    far; then each chosen thread is swapped for any other that lowers that
-    distance, until none does.  ``kmeans``: the picture clustered into ``2 n``
-    colours by k-means in CIELAB, each centre snapped to the nearest thread
-    (CIEDE2000), the ``n`` threads covering the most pixels kept (the
-    comparison in docs/planner.md, "Colour").
+    Forward selection from the thread list.  Every colour a piece can show is
+    a mix of the board and its threads (in linear light; any coverage of any
+    layer order reaches the whole simplex of board and threads), so threads
+    are added one at a time, each the one that brings the picture's pixels (a
+    sample of 800 from the frame) nearest, on average in CIELAB, to the mixes
+    of the board and the threads chosen so far; then each chosen thread is
+    swapped for any other that lowers that distance (two passes).  (Against
+    k-means in CIELAB snapped to the list, see docs/planner.md, "Colour".)
 
     Parameters
     ----------
@@ -216,15 +192,12 @@ def auto_palette(rgb, n, *, background=WHITE, mask=None, rng=None, method="gamut
         Pixels that count (inside the frame).
     rng : None, int or numpy Generator
         Seeds the pixel sample (None: a fixed seed).
-    method : {"gamut", "kmeans"}
 
     Returns
     -------
     list of str
         ``n`` distinct ``"#rrggbb"`` from the thread list, none the board's colour.
     """
-    from skimage.color import deltaE_ciede2000, rgb2lab
-
     from .colour import lab
 
     rng = np.random.default_rng(0 if rng is None else rng)
@@ -233,18 +206,11 @@ def auto_palette(rgb, n, *, background=WHITE, mask=None, rng=None, method="gamut
         px = px[np.asarray(mask).ravel()]
     px = px[rng.choice(len(px), size=min(_SAMPLE, len(px)), replace=False)]
     names = list(threads())
-    cand = np.array([hex_to_rgb(threads()[k]) for k in names])
-    board_srgb = hex_to_rgb(background)
-    visible = deltaE_ciede2000(np.broadcast_to(rgb2lab(board_srgb[None, None])[0, 0], (len(cand), 3)),
-                               rgb2lab(cand[None])[0]) >= MIN_DELTA_E
+    lin = to_linear(np.array([hex_to_rgb(threads()[k]) for k in names]))
+    board = to_linear(hex_to_rgb(background))
+    visible = np.linalg.norm(lab(lin) - lab(board[None]), axis=1) >= MIN_DELTA_E
     n = min(int(n), int(visible.sum()))
-    if method == "kmeans":
-        return _kmeans_palette(px, n, cand, names, visible, board_srgb, rng)
-    if method != "gamut":
-        raise ValueError(f"method {method!r}; expected 'gamut' or 'kmeans'")
     target = lab(to_linear(px))
-    lin = to_linear(cand)
-    board = to_linear(board_srgb)
 
     def cost(chosen):
         verts = np.vstack([board[None], lin[chosen]])
@@ -268,27 +234,4 @@ def auto_palette(rgb, n, *, background=WHITE, mask=None, rng=None, method="gamut
                     chosen, current, improved = trial, c, True
         if not improved:
             break
-    return [threads()[names[i]] for i in chosen]
-
-
-def _kmeans_palette(px, n, cand, names, visible, board_srgb, rng):
-    from skimage.color import deltaE_ciede2000, rgb2lab
-
-    lab_px = rgb2lab(px[None])[0]
-    cand_lab = rgb2lab(cand[None])[0]
-    board_lab = rgb2lab(board_srgb[None, None])[0, 0]
-    centres, labels = _kmeans(lab_px, 2 * n, rng=rng)
-    score = np.zeros(len(names))
-    for j, c in enumerate(centres):
-        d = deltaE_ciede2000(np.broadcast_to(c, cand_lab.shape), cand_lab)
-        d[~visible] = np.inf
-        score[int(np.argmin(d))] += float(np.mean(labels == j)) * float(deltaE_ciede2000(c, board_lab))
-    order = [i for i in np.argsort(-score, kind="stable") if score[i] > 0]
-    chosen = order[:n]
-    far = np.argsort(-deltaE_ciede2000(np.broadcast_to(board_lab, cand_lab.shape), cand_lab), kind="stable")
-    for i in far:                    # a flat picture: fill with the threads farthest from the board
-        if len(chosen) >= n:
-            break
-        if i not in chosen and visible[i]:
-            chosen.append(int(i))
     return [threads()[names[i]] for i in chosen]
