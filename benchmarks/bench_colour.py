@@ -9,7 +9,8 @@ runs it:
   woven, blurred; luminance SSIM, plain and blurred);
 * black only: ``stringbot plan PIC --lines K`` (the default one-thread
   planner) with K the colour plan's line count, scored in colour
-  (``score --colour``: black thread on a white board, as woven);
+  (``score --colour``: black thread on a white board, as woven); and, for
+  reference, ``stringbot plan PIC`` at its own (automatic) line count;
 * per channel: each thread of the colour plan planned alone by the default
   one-thread planner against its own share of the picture (the picture
   unmixed into the threads' coverages, :func:`stringbot.planner.colour.unmix`,
@@ -23,7 +24,8 @@ bundled machine: the record must hold every layer's pins, in order, each with
 its layer's thread; the spool changes counted in the journal, the world's
 record and (G-code machines) the ``M0`` pauses of ``stringbot gcode``.
 
-    python benchmarks/bench_colour.py                  # everything (~10 min on 2 cores)
+    python benchmarks/bench_colour.py                  # everything (~15 min on 2 busy cores)
+    python benchmarks/bench_colour.py --wind-only      # the dry runs
     python benchmarks/bench_colour.py --pictures chelsea,rocket --no-wind
 """
 
@@ -48,10 +50,16 @@ MACHINES = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring", "dynamix
 
 
 def stringbot(*args, check=True):
+    """Run a stringbot command in a fresh process: (result, wall seconds, CPU seconds of the process)."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", "from stringbot.cli import main; main()", *map(str, args)],
                           capture_output=True, text=True)
     wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done.cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if check and done.returncode != 0:
         raise SystemExit(f"stringbot {' '.join(map(str, args))} failed ({done.returncode}): {done.stderr.strip()}")
     return done, wall
@@ -108,18 +116,22 @@ def quality(names, n, work):
     for name in names:
         pic = picture_path(name, work)
         cplan = work / f"{name}-c.json"
-        _, wall = stringbot("plan", pic, "-o", cplan, "--colors", f"auto:{n}")
+        done, wall = stringbot("plan", pic, "-o", cplan, "--colors", f"auto:{n}")
         plan = read_plan(cplan)
         sc = json.loads(stringbot("score", cplan, pic, "--json")[0].stdout)
         k = plan.stats["lines"]
         bplan = work / f"{name}-b.json"
         stringbot("plan", pic, "-o", bplan, "--lines", k)
         sb = json.loads(stringbot("score", bplan, pic, "--colour", "--json")[0].stdout)
+        aplan = work / f"{name}-a.json"
+        stringbot("plan", pic, "-o", aplan)
+        sa = json.loads(stringbot("score", aplan, pic, "--colour", "--json")[0].stdout)
         sp = per_channel(pic, plan)
         rows.append({"picture": name, "threads": " > ".join(color_name(c) for c in plan.colors),
                      "lines": k, "per_layer": [lay["lines"] for lay in plan.stats["layers"]],
-                     "colour": sc, "black": sb, "channel": sp, "changes": plan.stats["spool_changes"],
-                     "plan_s": wall, "planner_s": plan.stats["seconds"]})
+                     "colour": sc, "black": sb, "black_auto": sa, "channel": sp,
+                     "changes": plan.stats["spool_changes"], "plan_s": wall, "plan_cpu": done.cpu,
+                     "planner_s": plan.stats["seconds"]})
         print(f"  {name}: done ({wall:.1f} s)", file=sys.stderr, flush=True)
     return rows
 
@@ -156,33 +168,39 @@ def dry_runs(name, n, lines, work):
     return plan, out
 
 
+def table(rows):
+    print("\n| picture | threads (winding order) | lines | CIEDE2000 colour / black only / per channel "
+          "(black at its own line count) | luminance SSIM colour / black / channel (own) "
+          "| blurred SSIM colour / black / channel (own) | spool changes | plan: wall, CPU (planner) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        c, b, p, a = r["colour"], r["black"], r["channel"], r["black_auto"]
+        print(f"| {r['picture']} | {r['threads']} ({'/'.join(map(str, r['per_layer']))}) | {r['lines']} "
+              f"| **{c['delta_e']:.2f}** / {b['delta_e']:.2f} / {p['delta_e']:.2f} ({a['delta_e']:.2f} at {a['lines']}) "
+              f"| {c['ssim']:.3f} / {b['ssim']:.3f} / {p['ssim']:.3f} ({a['ssim']:.3f}) "
+              f"| {c['ssim_blurred']:.3f} / {b['ssim_blurred']:.3f} / {p['ssim_blurred']:.3f} ({a['ssim_blurred']:.3f}) "
+              f"| {r['changes']} | {r['plan_s']:.1f} s, {r['plan_cpu']:.1f} s ({r['planner_s']:.1f} s) |")
+    avg = {k: np.mean([r[k]["delta_e"] for r in rows]) for k in ("colour", "black", "channel", "black_auto")}
+    print(f"| **mean** | | | **{avg['colour']:.2f}** / {avg['black']:.2f} / {avg['channel']:.2f} "
+          f"({avg['black_auto']:.2f}) | | | | |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pictures", default=",".join(SHARED_COLOUR + EXTRA[:2]))
     ap.add_argument("--colors", type=int, default=3, help="threads per plan (auto:N)")
     ap.add_argument("--no-wind", action="store_true", help="skip the dry runs")
-    ap.add_argument("--wind-picture", default="chelsea")
+    ap.add_argument("--wind-picture", default="coffee")
     ap.add_argument("--wind-lines", type=int, default=1500)
+    ap.add_argument("--wind-only", action="store_true", help="only the dry runs")
     args = ap.parse_args()
     print(f"# load average before: {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores)")
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         stringbot("plan", SHARED / "camera.png", "-o", work / "warm.json")   # fill the chord cache
-        rows = quality(args.pictures.split(","), args.colors, work)
-        print("\n| picture | threads (winding order) | lines | CIEDE2000 colour / black only / per channel "
-              "| luminance SSIM colour / black / channel | blurred SSIM colour / black / channel "
-              "| spool changes | plan (whole command) |")
-        print("|---|---|---|---|---|---|---|---|")
-        for r in rows:
-            c, b, p = r["colour"], r["black"], r["channel"]
-            print(f"| {r['picture']} | {r['threads']} ({'/'.join(map(str, r['per_layer']))}) | {r['lines']} "
-                  f"| **{c['delta_e']:.2f}** / {b['delta_e']:.2f} / {p['delta_e']:.2f} "
-                  f"| {c['ssim']:.3f} / {b['ssim']:.3f} / {p['ssim']:.3f} "
-                  f"| {c['ssim_blurred']:.3f} / {b['ssim_blurred']:.3f} / {p['ssim_blurred']:.3f} "
-                  f"| {r['changes']} | {r['plan_s']:.1f} s (planner {r['planner_s']:.1f} s) |")
-        avg = {k: np.mean([r[k]["delta_e"] for r in rows]) for k in ("colour", "black", "channel")}
-        print(f"| **mean** | | | **{avg['colour']:.2f}** / {avg['black']:.2f} / {avg['channel']:.2f} | | | | |")
-        print(f"# load average after: {os.getloadavg()[0]:.2f}")
+        if not args.wind_only:
+            table(quality(args.pictures.split(","), args.colors, work))
+            print(f"# load average after: {os.getloadavg()[0]:.2f}")
         if args.no_wind:
             return
         plan, out = dry_runs(args.wind_picture, args.colors, args.wind_lines, work)
