@@ -94,7 +94,9 @@ def contact_sheet(rows, names, titles, path, side=260):
         for k, tile in enumerate(tiles):
             sheet.paste(Image.fromarray((np.clip(tile, 0, 1) * 255).astype(np.uint8)), (pad + k * (side + pad), y + 14))
     buf = __import__("io").BytesIO()
-    sheet.save(buf, format="PNG", optimize=True)
+    # 16 gray levels (4-bit PNG): a third of the size, no visible difference for thread drawings
+    small = sheet.quantize(colors=16, method=Image.Quantize.MEDIANCUT)
+    small.save(buf, format="PNG", optimize=True, bits=4)
     write_atomic(path, buf.getvalue())
 
 

@@ -65,7 +65,8 @@ def test_plan_writes_plan_and_preview_and_prints_a_summary(tmp_path, picture):
     assert preview.size == (1001, 1001)
     line = stdout.strip()
     assert "\n" not in line
-    for part in (f"fitness ({plan.parameters['style']}):", "60 pins", "80 lines", "diameters", f"{plan.stats['thread_diameters']:.1f}", " s "):
+    metres = plan.stats["thread_diameters"] * plan.diameter_mm / 1000   # the issue: metres, not diameters
+    for part in (f"fitness ({plan.parameters['style']}):", "60 pins", "80 lines", f"thread {metres:.1f} m", " s "):
         assert part in line, line
 
 
@@ -343,7 +344,8 @@ def test_old_plans_without_thread_fields_still_read(tmp_path, picture):
     del doc["diameter_mm"], doc["thread_mm"]
     out.write_text(json.dumps(doc))
     plan = read_plan(out)
-    assert (plan.diameter_mm, plan.thread_mm) == (500.0, 0.25)
+    assert (plan.diameter_mm, plan.thread_mm) == (None, None)  # not recorded: drawn with 500 / 0.25
+    assert (plan.thread_model().diameter_mm, plan.thread_model().thread_mm) == (500.0, 0.25)
     code, _, err = run("render", out, "-o", tmp_path / "r.png", "--size", "101")
     assert code == 0, err
     doc["thread_mm"] = 0
@@ -358,3 +360,11 @@ def test_machine_gives_the_ring_and_the_thread(tmp_path, picture):
     assert code == 0, err
     plan = read_plan(out)
     assert (plan.pins, plan.diameter_mm, plan.thread_mm) == (300, 500.0, 0.25)
+
+
+def test_the_recorded_frame_size_reaches_the_makers_commands(tmp_path, picture):
+    out = tmp_path / "p.json"
+    assert run("plan", picture, "-o", out, *SMALL, "--lines", "30", "--diameter-mm", "400")[0] == 0
+    code, stdout, err = run("pins", out, "-o", tmp_path / "pins.txt")
+    assert code == 0, err
+    assert "400 mm ring diameter, from the plan" in stdout, stdout

@@ -52,7 +52,8 @@ def test_ok_and_grbls_error_codes():
         (b"G1 Y5\n", b"error:22\r\n"),            # feed rate never set
         (b"G1 Y5 F600\n", OK),
         (b"G99\n", b"error:20\r\n"),              # unsupported command
-        (b"G0 X1.2.3\n", b"error:2\r\n"),         # bad number format
+        (b"G0 X1.2.3\n", b"error:1\r\n"),         # read_float stops at the 2nd '.', not a letter
+        (b"G0 X.\n", b"error:2\r\n"),            # bad number format: no digits
         (b"X\n", b"error:2\r\n"),
         (b"10\n", b"error:1\r\n"),                # expected command letter
         (b"G0 X1 X2\n", b"error:25\r\n"),         # repeated word
@@ -61,7 +62,16 @@ def test_ok_and_grbls_error_codes():
         (b"G0 A5\n", b"error:20\r\n"),            # stock GRBL has no A axis
         (b"G0 X1 P3\n", b"error:36\r\n"),         # unused value word
         (b"G92\n", b"error:26\r\n"),              # no axis words
-        (b"G59.1\n", b"error:29\r\n"),
+        (b"G59.1\n", b"error:23\r\n"),            # GRBL's code: G59 with a mantissa (its docs say 29)
+        (b"M999\n", b"error:23\r\n"),             # uint8 int_value 231, mantissa 11264: "not integer"
+        (b"M5.5\n", b"error:23\r\n"),
+        (b"M100\n", b"error:20\r\n"),
+        (b"G1.5 X1\n", b"error:23\r\n"),
+        (b"G43 Z1\n", b"error:20\r\n"),            # only G43.1
+        (b"G90.1\n", b"error:20\r\n"),
+        (b"G91.1\n", OK),                           # GRBL's only arc distance mode: accepted
+        (b"G300\n", b"error:20\r\n"),
+        (b"T300\n", b"error:38\r\n"),
         (b"G1 X5 F-3\n", b"error:4\r\n"),
         (b"N99999999 G0 X1\n", b"error:27\r\n"),
         (b"G4 P0\n", OK),                          # settings only when idle: wait for motion
@@ -92,8 +102,13 @@ def test_status_reports_follow_grbls_default_mask_and_refresh_counters():
         (b"$10=3\n", OK),
         (b"?", b"<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>\r\n"),
         (b"$10=0\n", OK),
-        (b"G10 L2 P1 X5\n", OK),
+        (b"G10 L2 P1 X5\n", OK),                   # a WCO change: the next report says so
+        (b"?", b"<Idle|WPos:-5.000,0.000,0.000|FS:0,0|WCO:5.000,0.000,0.000>\r\n"),
         (b"?", b"<Idle|WPos:-5.000,0.000,0.000|FS:0,0>\r\n"),
+        (b"G10 L2 P2 X7\n", OK),                   # G55 is not in use: no WCO change
+        (b"?", b"<Idle|WPos:-5.000,0.000,0.000|FS:0,0>\r\n"),
+        (b"G55\n", OK),
+        (b"?", b"<Idle|WPos:-7.000,0.000,0.000|FS:0,0|WCO:7.000,0.000,0.000>\r\n"),
     ])
     st = codec.parse_status("<Idle|MPos:1.000,2.000,0.000|Bf:15,128|FS:0,0|WCO:1.000,0.000,0.000>")
     assert st.state == "Idle" and st.mpos == (1.0, 2.0, 0.0) and st.wpos == (0.0, 2.0, 0.0)
@@ -118,6 +133,16 @@ def test_settings_build_info_parser_state_help():
     ])
 
 
+#: grbl-ring's X (ring) steps per degree and Y (head) steps per mm: positions are whole steps
+RING_SPU, HEAD_SPU = 44.4444, 80.0
+HALF_RING_STEP, HALF_HEAD_STEP = 0.5 / RING_SPU, 0.5 / HEAD_SPU
+
+
+def on_step(x, spu=RING_SPU):
+    """``x`` on the nearest whole step, as GRBL plans it (``lround(x * steps_per_mm)``)."""
+    return round(x * spu) / spu
+
+
 def test_g4_p0_is_answered_only_when_motion_has_finished():
     emu = emulator()
     emu.receive(b"G0 X90\nG4 P0\n")
@@ -126,7 +151,7 @@ def test_g4_p0_is_answered_only_when_motion_has_finished():
     run_exchange(emu, [(b"", OK)])                 # the clock runs until the dwell answers
     # 90 deg at 7200 deg/min (120 deg/s) and 360 deg/s^2: two ramps of 1/3 s and 20 deg, 50 deg cruise
     assert emu.now == pytest.approx(2 / 3 + 50 / 120)
-    assert (emu.world.ring_deg, emu.world.head_mm) == (90.0, 0.0)
+    assert (emu.world.ring_deg, emu.world.head_mm) == (on_step(90.0), 0.0)     # 4000 steps
     run_exchange(emu, [(b"?", b"<Idle|MPos:90.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n")])
 
 
@@ -140,7 +165,7 @@ def test_planner_holds_15_blocks_and_withholds_ok_when_full():
         (b"?", b"<Run|MPos:0.000,0.000,0.000|Bf:0,128|FS:0,0|WCO:0.000,0.000,0.000>\r\n"),
         (b"", OK),                                  # the first block ends, the 16th is queued
     ])
-    assert emu.motion.free == 0 and emu.world.ring_deg == 10.0
+    assert emu.motion.free == 0 and emu.world.ring_deg == on_step(10.0)
 
 
 def test_receive_buffer_overflow_when_the_host_oversends():
@@ -164,7 +189,7 @@ def test_feed_hold_resume_and_soft_reset_while_moving():
     emu = emulator()
     run_exchange(emu, [(b"G0 X360\n", OK)])
     emu.advance(0.5)
-    run_exchange(emu, [(b"!", b""), (b"?", b"<Hold:1|MPos:" + b"%.3f" % emu.motion.position[0]
+    run_exchange(emu, [(b"!", b""), (b"?", b"<Hold:1|MPos:" + b"%.3f" % on_step(emu.motion.position[0])
                                       + b",0.000,0.000|FS:7200,0|WCO:0.000,0.000,0.000>\r\n")])
     emu.advance(None)                              # decelerates to rest
     held = emu.world.ring_deg
@@ -175,9 +200,9 @@ def test_feed_hold_resume_and_soft_reset_while_moving():
     run_exchange(emu, [(b"~", b"")])
     assert emu.state is GrblState.RUN
     emu.advance(0.2)
-    pos = emu.motion.position[0]
+    pos = on_step(emu.motion.position[0])
     run_exchange(emu, [(b"\x18", b"ALARM:3\r\n" + BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n")])
-    assert emu.world.ring_deg == pytest.approx(pos)  # stopped where it was
+    assert emu.world.ring_deg == pytest.approx(pos)  # stopped where it was, on a step
     run_exchange(emu, [
         (b"G0 X0\n", b"error:9\r\n"),              # G-code locked out in alarm
         (b"?", b"<Alarm|MPos:%.3f,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n" % pos),
@@ -189,7 +214,8 @@ def test_feed_hold_resume_and_soft_reset_while_moving():
 def test_soft_reset_when_idle_keeps_position_and_gives_no_alarm():
     emu = emulator()
     run_exchange(emu, [(b"G0 X5\nG4 P0\n", OK + OK), (b"G92 X0\n", OK), (b"\x18", BANNER)])
-    run_exchange(emu, [(b"?", b"<Idle|MPos:5.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n")])
+    # 5 deg is 222.222 steps: GRBL goes to 222 and reports 4.995
+    run_exchange(emu, [(b"?", b"<Idle|MPos:4.995,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n")])
 
 
 def test_homing_machine_starts_in_alarm_and_homes_to_the_switches():
@@ -203,7 +229,7 @@ def test_homing_machine_starts_in_alarm_and_homes_to_the_switches():
         (b"$H\n", OK),
         (b"?", b"<Idle|MPos:0.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n"),
     ])
-    assert world.ring_deg == 0.0 and world.collisions == []
+    assert world.ring_deg == pytest.approx(0.0, abs=HALF_RING_STEP) and world.collisions == []
 
 
 def test_jog_and_jog_cancel():
@@ -233,7 +259,7 @@ def test_motion_reaches_the_world_partway_when_time_is_cut():
     emu = emulator()
     run_exchange(emu, [(b"G0 X360\n", OK)])
     emu.advance(0.25)                                # still accelerating: s = a t^2 / 2
-    assert emu.world.ring_deg == pytest.approx(0.5 * 360 * 0.25 ** 2)
+    assert emu.world.ring_deg == pytest.approx(0.5 * 360 * 0.25 ** 2, abs=HALF_RING_STEP)
     assert emu.busy
 
 
@@ -273,7 +299,7 @@ def test_arcs_are_cut_into_segments_on_the_circle():
         (b"G17 G2 X10 Y0 I5 J0 F600\n", OK),             # half circle through Y=+5 (clockwise)
         (b"G4 P0\n", OK),
     ])
-    assert emu.world.ring_deg == pytest.approx(10.0) and emu.world.head_mm == pytest.approx(0.0)
+    assert emu.world.ring_deg == on_step(10.0) and emu.world.head_mm == 0.0
     assert emu.world.moves > 20                           # cut within the 0.002 mm tolerance
     run_exchange(emu, [(b"G3 X0 Y0 R5\n", OK), (b"G4 P0\n", OK)])
-    assert emu.world.ring_deg == pytest.approx(0.0, abs=1e-9)
+    assert emu.world.ring_deg == 0.0

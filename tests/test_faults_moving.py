@@ -27,6 +27,14 @@ OK = b"ok\r\n"
 ALARM3 = b"ALARM:3\r\n"
 
 
+def on_step(x, spu=44.4444):
+    """``x`` on the nearest whole step of grbl-ring's ring axis (the firmware counts steps)."""
+    return round(x * spu) / spu
+
+
+HALF_STEP = 0.5 / 44.4444
+
+
 def grbl(faults=None, machine="grbl-ring", record=None):
     emu, world = build_emulator(machine, faults=faults, record=record)
     emu.transmit()
@@ -94,7 +102,7 @@ def test_reset_at_a_fraction_of_a_move_answers_the_waiting_line_then_the_banner(
     pause it is answered ok -- a stray ok a host counting answers must not take for a move done."""
     emu, world = grbl("reset@1+0.4")
     run_exchange(emu, [(b"G0 X90\nG4 P0\n", OK + ALARM3 + OK + BANNER + UNLOCK)])
-    assert world.ring_deg == pytest.approx(36.0)
+    assert world.ring_deg == pytest.approx(36.0, abs=HALF_STEP)
     assert status(emu).startswith("<Alarm|MPos:36.000,0.000,0.000|")
 
 
@@ -103,15 +111,15 @@ def test_a_fraction_counts_the_whole_path_of_the_line():
     run_exchange(emu, [(b"G0 X10\n", OK), (b"G0 X20 Y8\n", OK)])
     while emu.port_up:
         emu.advance(None)
-    assert world.ring_deg == pytest.approx(12.5) and world.head_mm == pytest.approx(2.0)
+    assert world.ring_deg == pytest.approx(12.5, abs=HALF_STEP) and world.head_mm == 2.0
     emu.reconnect()
     run_exchange(emu, [(b"", BANNER), (b"G0 X0 Y0\nG4 P0\n", OK + OK)])
-    assert (world.ring_deg, world.head_mm) == pytest.approx((12.5, 2.0))   # the belief was wiped
+    assert (world.ring_deg, world.head_mm) == pytest.approx((12.5, 2.0), abs=HALF_STEP)   # belief wiped
     emu, world = grbl("power@2+0.5")
     run_exchange(emu, [(b"G0 X10\n", OK), (b"G28 X20\n", OK)])          # via X20 to G28's X0
     while emu.port_up:
         emu.advance(None)
-    assert world.ring_deg == pytest.approx(15.0)           # half of 10 + 20, on the way back
+    assert world.ring_deg == pytest.approx(15.0, abs=HALF_STEP)   # half of 10 + 20, on the way back
 
 
 def test_a_fraction_of_a_line_that_does_not_move_fires_as_it_starts():
@@ -156,12 +164,12 @@ def test_reboot_mid_move_is_silent_a_moment_then_forgets_the_position(tmp_path):
     emu, world = grbl("reboot@1+0.5", record=tmp_path / "rec.json")
     run_exchange(emu, [(b"G0 X90\nG4 P0\n", b"ok\r\n")])
     emu.advance(emu.next_event_in())                        # the reboot
-    assert world.ring_deg == pytest.approx(45.0)
+    assert world.ring_deg == pytest.approx(45.0, abs=HALF_STEP)
     emu.receive(b"?G0 X1\n")                                # the bootloader eats it
     assert emu.transmit() == b"" and emu.next_event_in() == pytest.approx(BOOT_SECONDS)
     run_exchange(emu, [(b"", BANNER),
                        (b"?", b"<Idle|MPos:0.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n")])
-    assert world.ring_deg == pytest.approx(45.0)
+    assert world.ring_deg == pytest.approx(45.0, abs=HALF_STEP)
     events = json.loads((tmp_path / "rec.json").read_text())["events"]
     assert [(e["event"], e["at"]) for e in events] == [("reboot", "line=1+0.5")]
 
@@ -184,7 +192,7 @@ def test_marlin_reset_mid_move_is_a_restart():
     n = lambda i, c: mc.numbered(i, c).encode() + b"\n"  # noqa: E731
     run_exchange(emu, [(n(0, "M110 N0"), b"ok\n"), (n(1, "G0 A90"), b"ok\n")])
     emu.advance(None)                                       # half way: the board restarts
-    assert world.ring_deg == pytest.approx(45.0) and emu.transmit() == b""
+    assert world.ring_deg == pytest.approx(45.0, abs=HALF_STEP) and emu.transmit() == b""
     emu.advance(None)
     assert emu.transmit().startswith(b"start\n")
     run_exchange(emu, [(n(1, "M114"), b"X:0.00 Y:0.00 Z:0.00 A:0.00 Count X:0 Y:0 Z:0 A:0\nok\n")])
@@ -226,7 +234,7 @@ def test_reset_on_open_through_sim_url(uno, tmp_path):
     port.close()
     r = json.loads(rec.read_text())
     assert [(e["event"], e["at"]) for e in r["events"]] == [("reboot", "port opened")] * 2
-    assert r["ring_deg"] == 5.0
+    assert r["ring_deg"] == on_step(5.0)
     protocol_sim.forget(url)
 
 
@@ -251,7 +259,7 @@ def test_reset_on_open_through_a_pty(uno, tmp_path):
         port.write(b"?")
         assert port.readline().startswith(b"<Idle|MPos:0.000,0.000,0.000|")
         port.close()
-        assert world.ring_deg == 5.0
+        assert world.ring_deg == on_step(5.0)
     finally:
         stop.set()
         thread.join(5)
@@ -268,12 +276,12 @@ def test_grbl_ignore_answers_ok_and_does_nothing():
     emu, world = grbl("ignore@2,ignore@4..")
     run_exchange(emu, [
         (b"G0 X10\nG0 X20\nG4 P0\n", OK + OK + OK),        # line 2 acknowledged, not run
-        (b"?", b"<Idle|MPos:10.000,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n"),
+        (b"?", b"<Idle|MPos:9.990,0.000,0.000|FS:0,0|WCO:0.000,0.000,0.000>\r\n"),
         (b"G10 L20 P1 X0\nG0 X30\n$X\n", OK + OK + OK),     # from line 4 on: nothing happens
     ])
     emu.advance(5.0)
-    assert world.ring_deg == 10.0
-    assert status(emu).startswith("<Idle|MPos:10.000,0.000,0.000|")
+    assert world.ring_deg == on_step(10.0)
+    assert status(emu).startswith("<Idle|MPos:9.990,0.000,0.000|")
     assert emu.parser.coord_systems[0] == [0.0, 0.0, 0.0]              # G10 L20 did nothing either
 
 
@@ -284,4 +292,11 @@ def test_marlin_ignore_answers_ok_and_does_nothing():
     run_exchange(emu, [(n(0, "M110 N0"), b"ok\n"), (n(1, "G0 A10"), b"ok\n"), (n(2, "G0 A20"), b"ok\n"),
                        (n(3, "M400"), b"ok\n"),
                        (n(4, "M114"), b"X:0.00 Y:0.00 Z:0.00 A:10.00 Count X:0 Y:0 Z:0 A:444\nok\n")])
-    assert world.ring_deg == 10.0
+    assert world.ring_deg == on_step(10.0)
+
+
+def test_a_plus_in_a_sim_url_is_a_plus():
+    from firmware_protocol.urlhandler.protocol_sim import parse_url
+    assert parse_url("sim://?faults=reset@230+0.4,ignore@9+")["faults"] == "reset@230+0.4,ignore@9+"
+    assert parse_url("sim://?faults=reset@3,+garble@7")["faults"] == "reset@3,garble@7"   # urlencode's space
+    assert parse_url("sim://?faults=reset@230%2B0.4")["faults"] == "reset@230+0.4"

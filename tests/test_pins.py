@@ -16,7 +16,9 @@ from test_gcode_replay import make_plan, random_sequence
 @pytest.fixture
 def plan_file(tmp_path):
     path = tmp_path / "p.json"
-    write_plan(make_plan(random_sequence(250, seed=4)), path)
+    plan = make_plan(random_sequence(250, seed=4))
+    plan.diameter_mm, plan.thread_mm = 500.0, 0.25      # as `plan` records them (a hand-made plan may not)
+    write_plan(plan, path)
     return path
 
 
@@ -68,7 +70,7 @@ def test_text_has_a_header_and_pages_of_100_steps(tmp_path, plan_file):
 def test_dash_writes_to_standard_output(tmp_path, plan_file):
     code, stdout, err = run("pins", plan_file, "-o", "-")
     assert code == 0, err
-    assert stdout.startswith("stringbot pin list") and "give --diameter-mm or --machine for metres" in stdout
+    assert stdout.startswith("stringbot pin list") and "500 mm ring diameter, from the plan" in stdout
     assert "250 steps" in err and not list(tmp_path.glob("-*"))
 
 

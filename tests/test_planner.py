@@ -453,8 +453,8 @@ def test_greedy_is_threadtones_loop():
     space = chord_space(P)
     mask = frame_mask(size, "circle")
     seq = greedy_sequence(space, size, g, mask, 400, weight=15.0, reference_radius=None)
-    from stringbot.planner.chords import pin_pixels
-    ref = threadtone_literal(g, pin_pixels(space.pin_xy, size), 400, 15.0, 2.0)
+    pin_rc = np.floor(space.pin_xy[:, ::-1] * (size - 1) + 1e-9).astype(int)  # ThreadTone truncates pins too
+    ref = threadtone_literal(g, pin_rc, 400, 15.0, 2.0)
     assert len(seq) > 30 and len(seq) < 401  # it stopped by ThreadTone's rule: no positive sum left
     assert seq == ref
 

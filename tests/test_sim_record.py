@@ -117,7 +117,7 @@ def test_sim_url_record_is_current_once_the_port_is_closed(tmp_path):
         assert port.readline() == OK
     port.close()
     r = read(rec)
-    assert (r["ring_deg"], r["head_mm"], r["head_side"], r["moves"]) == (1.8, 12.0, "out", 3)
+    assert (r["ring_deg"], r["head_mm"], r["head_side"], r["moves"]) == (80 / 44.4444, 12.0, "out", 3)
     assert r["wraps"] == [] and r["crashes"] == [] and r["collisions"] == []
     protocol_sim.forget(url)
 
@@ -135,7 +135,7 @@ def test_sim_url_record_when_the_port_drops(tmp_path):
         port.read(1)
     r = read(rec)                            # written when the power went, before any close
     assert [e["event"] for e in r["events"]] == ["power off"]
-    assert (r["ring_deg"], r["head_mm"], r["head_side"]) == (0.6, 12.0, "out")
+    assert (r["ring_deg"], r["head_mm"], r["head_side"]) == (27 / 44.4444, 12.0, "out")   # whole steps
     port.close()
     protocol_sim.forget(url)
 
@@ -159,4 +159,4 @@ def test_stringbot_simulate_writes_the_record_when_it_exits(tmp_path):
         sim.send_signal(signal.SIGINT)
         sim.wait(timeout=20)
     r = read(rec)
-    assert (r["ring_deg"], r["head_mm"], r["head_side"]) == (0.6, 7.0, "out")
+    assert (r["ring_deg"], r["head_mm"], r["head_side"]) == (27 / 44.4444, 7.0, "out")

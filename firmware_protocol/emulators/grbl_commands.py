@@ -7,7 +7,7 @@ GRBL's status code (0 = ``ok``) or, for commands that take time, a generator
 the emulator's main loop runs (see :class:`~.grbl.GrblEmulator`).
 """
 
-from .grbl_parser import GrblError, fmt, read_words
+from .grbl_parser import GrblError, fmt
 
 __all__ = ["system_command"]
 
@@ -70,7 +70,9 @@ def system_command(emu, text):
     if text.startswith("$RST="):
         if text[5:] not in ("$", "#", "*"):
             return 3
+        emu.restore(text[5])
         emu._emit("[MSG:Restoring defaults]")
+        emu.after_response = emu._soft_reset      # GRBL resets itself once the ok is out
         return 0
     if text.startswith("$N"):
         if text == "$N":
@@ -146,38 +148,38 @@ def _parameters(emu):
 
 
 def _jog(emu, block):
-    """``$J=G91 X10 F500``: a jog motion (IDLE or JOG only), never changing the parser's modes."""
+    """``$J=G91 X10 F500``: a jog motion (IDLE or JOG only), never changing the parser's modes.
+
+    Checked in GRBL's order (``gc_execute_line`` with its jog flag): the words
+    (error:1, 2, 20, 21, 23, 25, 4), the line number (27), the F word (22),
+    unused words (36), then what a jog may hold (16: only G20/G21, G90/G91,
+    G53, axis words, F and N).  A jog without axis words is error:26 here
+    (GRBL 1.1h would plan a move to machine zero).
+    """
     try:
-        words = read_words(block)
+        gcodes, mcodes, values, axis_words = emu.parser.read_block(block)
     except GrblError as exc:
         return exc.code
-    inches = emu.parser.state.units == "G20"
-    absolute = emu.parser.state.distance == "G90"
-    machine = False
-    axis_words, feed = {}, None
-    for letter, _text, value in words:
-        if letter == "G":
-            if value in (20, 21):
-                inches = value == 20
-            elif value in (90, 91):
-                absolute = value == 90
-            elif value == 53:
-                machine = True
-            else:
-                return 16
-        elif letter == "F":
-            feed = value
-        elif letter in emu.axes:
-            axis_words[letter] = value
-        elif letter != "N":
-            return 16
-    if feed is None:
+    if values.get("N", 0) > 9999999:
+        return 27
+    if "F" not in values:
         return 22
+    if gcodes.get("nonmodal") == 4:
+        if "P" not in values:
+            return 28
+        values.pop("P")
+    if set(values) - {"N", "F"}:
+        return 36
+    if mcodes or set(gcodes) - {"distance", "units", "nonmodal"} or gcodes.get("nonmodal") not in (None, 53):
+        return 16
     if not axis_words:
         return 26
+    inches = gcodes.get("units", int(emu.parser.state.units[1:])) == 20
+    absolute = gcodes.get("distance", int(emu.parser.state.distance[1:])) == 90
+    machine = gcodes.get("nonmodal") == 53
     scale = 25.4 if inches else 1.0
     wco = emu.parser.wco()
     target = emu.parser._target(axis_words, scale, absolute, wco, machine=machine)
     emu.parser.position = list(target)
-    return emu._queue_moves([tuple(target)], rapid=False, feed=feed * scale, inverse=False,
+    return emu._queue_moves([tuple(target)], rapid=False, feed=values["F"] * scale, inverse=False,
                             line_number=0, kind="jog")

@@ -50,6 +50,8 @@ class Action:
     inverse_time: bool = False
     seconds: float = 0.0
     line_number: int = 0
+    sync: bool = False        # GRBL waits for motion to finish first (an EEPROM write, a WCO change)
+    wco: bool = False         # ... and the next status report carries WCO:
 
 
 @dataclass
@@ -91,7 +93,10 @@ def fmt(value, decimals):
 def read_words(block):
     """Split a cleaned block (``G0X10.5Y2``) into ``[(letter, value_text, value), ...]``.
 
-    Raises GrblError 1 (a value without its letter) or 2 (a letter without a valid number).
+    Numbers are read as GRBL's ``read_float`` reads them: an optional sign,
+    digits with at most one decimal point, up to the first other character
+    (so ``X1.2.3`` is ``X1.2`` followed by a stray ``.``).  Raises GrblError 1
+    (something else where a letter must be) or 2 (a letter without digits).
     """
     words = []
     i, n = 0, len(block)
@@ -103,17 +108,28 @@ def read_words(block):
         j = i
         if j < n and block[j] in "+-":
             j += 1
-        digits = 0
-        while j < n and (block[j].isdigit() or block[j] == "."):
-            if block[j].isdigit():
+        digits, point = 0, False
+        while j < n and (block[j].isdigit() or (block[j] == "." and not point)):
+            if block[j] == ".":
+                point = True
+            else:
                 digits += 1
             j += 1
         text = block[i:j]
-        if digits == 0 or text.count(".") > 1:
+        if digits == 0:
             raise GrblError(2, f"bad number after {letter}")
         words.append((letter, text, float(text)))
         i = j
     return words
+
+
+def grbl_split(value):
+    """GRBL's ``int_value`` (``uint8_t``, truncated) and ``mantissa`` (``uint16_t``,
+    ``round(100 * (value - int_value))``) of a G/M word: ``M999`` is (231, 11264)."""
+    int_value = math.trunc(value) & 0xFF
+    diff = 100.0 * (value - int_value)
+    mantissa = int(math.floor(abs(diff) + 0.5)) * (1 if diff >= 0 else -1)
+    return int_value, mantissa & 0xFFFF
 
 
 _GROUPS = {  # G word -> modal group
@@ -126,6 +142,29 @@ _GROUPS = {  # G word -> modal group
 _M_GROUPS = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle", 5: "spindle",
              8: "coolant", 9: "coolant"}
 _VALUE_LETTERS = "FIJKLNPRST"
+
+
+def _g_word(value, text):
+    """(modal group, key) of a G word, with GRBL's checks in GRBL's order: an unknown number is
+    error:20, a decimal GRBL does not know error:20 or 23.  ``key`` is the number, or
+    ``(number, tenths)`` for G28.1, G30.1, G92.1, G38.x, G43.1; G91.1 is ``"arc_distance"``."""
+    ival, mant = grbl_split(value)
+    group = _GROUPS.get(ival)
+    if group is None:
+        raise GrblError(20, f"G{text}")
+    if ival in (28, 30, 92) and mant not in (0, 10):
+        raise GrblError(20, f"G{text}")
+    if ival == 38 and mant not in (20, 30, 40, 50):
+        raise GrblError(20, f"G{text}")
+    if ival in (90, 91) and mant:
+        if mant != 10 or ival == 90:
+            raise GrblError(20, f"G{text}")
+        return "arc_distance", (91, 1)          # G91.1: IJK incremental, GRBL's only arc mode
+    if (ival == 43 and mant != 10) or (ival == 61 and mant):
+        raise GrblError(20, f"G{text}")
+    if mant and ival not in (28, 30, 92, 38, 43):
+        raise GrblError(23, f"G{text}")
+    return group, ival if not mant else (ival, mant // 10)
 
 
 class GrblParser:
@@ -159,26 +198,35 @@ class GrblParser:
 
     # ---- the block -----------------------------------------------------------------------
     def execute(self, block):
-        """Check and apply one cleaned block; returns an :class:`Action` or raises GrblError."""
-        words = read_words(block)
-        st = self.state
+        """Check and apply one cleaned block; returns an :class:`Action` or raises GrblError.
+
+        A block that writes offsets to EEPROM or changes the work coordinate offset
+        (``G10``, ``G28.1``/``G30.1``, ``G92``/``G92.1``, another ``G54``..``G59``, a new
+        tool length offset) comes with ``sync`` (and ``wco``): GRBL 1.1's
+        ``FORCE_BUFFER_SYNC_DURING_EEPROM_WRITE`` / ``..._WCO_CHANGE`` make it wait for
+        motion to finish, and the next status report shows ``WCO:``.
+        """
+        self._sync = self._wco = False
+        action = self._execute(block)
+        action.sync, action.wco = self._sync, self._wco
+        return action
+
+    def read_block(self, block):
+        """GRBL's step 2, the words of a block: ``(gcodes, mcodes, values, axis_words)`` (dicts by
+        modal group or letter), or GrblError for a bad word, a repeat or a modal group conflict."""
         gcodes, mcodes, values, axis_words = {}, {}, {}, {}
-        for letter, text, value in words:
+        for letter, text, value in read_words(block):
             if letter == "G":
-                ival, mant = self._split(value)
-                key = ival if not mant else (ival, mant)
-                group = _GROUPS.get(ival)
-                if group is None or (mant and key not in ((28, 1), (30, 1), (92, 1), (43, 1))):
-                    if ival == 59 and mant:
-                        raise GrblError(29)
-                    raise GrblError(20, f"G{text}")
+                group, key = _g_word(value, text)
                 if group in gcodes:
                     raise GrblError(21, f"G{text}")
                 gcodes[group] = key
             elif letter == "M":
-                ival, mant = self._split(value)
+                ival, mant = grbl_split(value)
+                if mant > 0:
+                    raise GrblError(23, f"M{text}")
                 group = _M_GROUPS.get(ival)
-                if group is None or mant:
+                if group is None:
                     raise GrblError(20, f"M{text}")
                 if group in mcodes:
                     raise GrblError(21, f"M{text}")
@@ -188,13 +236,20 @@ class GrblParser:
                     raise GrblError(25, letter)
                 axis_words[letter] = value
             elif letter in _VALUE_LETTERS:
+                if letter == "T" and value > 255:
+                    raise GrblError(38)
                 if letter in values:
                     raise GrblError(25, letter)
                 if letter in "FNPST" and value < 0:
                     raise GrblError(4, letter)
-                values[letter] = value
+                values[letter] = float(grbl_split(value)[0]) if letter == "L" else value
             else:
                 raise GrblError(20, f"{letter}{text}")
+        return gcodes, mcodes, values, axis_words
+
+    def _execute(self, block):
+        st = self.state
+        gcodes, mcodes, values, axis_words = self.read_block(block)
         if "N" in values and values["N"] > 9999999:
             raise GrblError(27)
         used = {"N"}
@@ -206,7 +261,7 @@ class GrblParser:
             if axis_command:
                 raise GrblError(24)
             axis_command = "motion"
-        if motion == 38:
+        if isinstance(motion, tuple) and motion[0] == 38:
             raise GrblError(20, "probing is not supported by this simulator")
         if gcodes.get("tlo") == (43, 1) and "Z" not in self.axes:
             raise GrblError(37)
@@ -288,9 +343,14 @@ class GrblParser:
             elif group == "units":
                 st.units = f"G{code}"
             elif group == "coord":
+                if st.coord != code - 54:
+                    self._sync = self._wco = True
                 st.coord = code - 54
             elif group == "tlo":
-                st.tlo = axis_words.get("Z", 0.0) * scale if code == (43, 1) else 0.0
+                tlo = axis_words.get("Z", 0.0) * scale if code == (43, 1) else 0.0
+                if tlo != st.tlo:
+                    self._sync = self._wco = True
+                st.tlo = tlo
         for group, code in mcodes.items():
             if group == "spindle":
                 st.spindle = f"M{code}"
@@ -303,6 +363,7 @@ class GrblParser:
             return Action(kind="dwell", seconds=values["P"], line_number=action.line_number)
         if nonmodal == 10:
             idx = int(values["P"]) - 1 if values["P"] else st.coord
+            self._sync, self._wco = True, self._wco or idx == st.coord
             cs = self.coord_systems[idx]
             for axis, value in axis_words.items():
                 i = self.axes.index(axis)
@@ -311,6 +372,10 @@ class GrblParser:
                 else:  # L20: current position becomes the given work value
                     cs[i] = self.position[i] - st.g92[i] - value * scale
             return action
+        if nonmodal in (92, (92, 1)):
+            self._sync = self._wco = True
+        if nonmodal in ((28, 1), (30, 1)):
+            self._sync = True
         if nonmodal == 92:
             for axis, value in axis_words.items():
                 i = self.axes.index(axis)
@@ -414,10 +479,4 @@ class GrblParser:
                 target[i] = self.position[i] + value * scale
         return tuple(target)
 
-    @staticmethod
-    def _split(value):
-        ival = int(math.floor(value + 1e-9))
-        mant = int(round(100 * (value - ival)))
-        if mant % 10 == 0:
-            mant //= 10
-        return ival, mant
+

@@ -321,8 +321,13 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
             yield lambda: self.motion.empty
         return 0
 
+    def _steps_per_unit(self, i):
+        steps = getattr(self, "steps", None)
+        return steps[i] if steps else None
+
     def _M410(self, p):
         self.motion.clear()
+        self._on_steps()
         return 0
 
     # ---- boot, reset, power ---------------------------------------------------------------------------

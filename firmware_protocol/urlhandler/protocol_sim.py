@@ -116,10 +116,21 @@ def parse_url(url):
                 raise SerialException(f"{FORM}: realtime={value!r}; expected 0 or 1")
             opts["realtime"] = value == "1"
         elif option == "faults":
-            opts["faults"] = value
+            opts["faults"] = _raw_faults(parts.query)
         else:
             raise SerialException(f"{FORM}: unknown option {option!r}")
     return opts
+
+
+def _raw_faults(query):
+    """The faults option with a '+' kept a plus (``reset@230+0.4`` typed by hand); a '+' that
+    stands for a space (``urlencode``'s, after a comma) is dropped."""
+    for part in query.split("&"):
+        name, _, value = part.partition("=")
+        if urllib.parse.unquote_plus(name) == "faults":
+            items = urllib.parse.unquote(value).split(",")
+            return ",".join(item.strip().lstrip("+").strip() for item in items)
+    return ""
 
 
 def session(url):

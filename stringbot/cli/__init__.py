@@ -26,7 +26,10 @@ def _bad_input_types():
 @click.version_option(__version__, prog_name="stringbot")
 @click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
 def cli(verbose):
-    """Plan a thread painting from a picture and wind it on a string-art machine."""
+    """Plan a thread painting from a picture and wind it on a string-art machine.
+
+    Each command has its own --help with its options and examples.
+    """
     level = logging.WARNING - 10 * min(verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
 
@@ -65,3 +68,4 @@ def main(argv=None):
 from . import machines, planning, winding  # noqa: E402,F401
 from . import maker  # noqa: E402,F401  (template, pins, animate)
 from . import checking  # noqa: E402,F401  (machines check)
+from . import examples  # noqa: E402,F401  (each command's examples, at the foot of its --help)

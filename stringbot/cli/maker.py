@@ -43,11 +43,9 @@ def _frame_size(plan, diameter_mm, machine):
             raise BadInput(f"plan is for a {plan.frame} frame but machine {m.name!r} winds a ring; "
                            "expected a plan made with --frame circle")
         return m["ring.diameter_mm"], f"machine {m.name}", m
-    for key in ("diameter_mm", "frame_diameter_mm"):     # a plan that records its frame's size
-        for where in (plan.extra, plan.parameters, plan.extra.get("thread") or {}):
-            value = where.get(key) if isinstance(where, dict) else None
-            if isinstance(value, (int, float)) and not isinstance(value, bool) and 10 <= value <= 5000:
-                return float(value), "the plan", None
+    size = getattr(plan, "diameter_mm", None)           # the plan's frame (500 mm when it names none)
+    if size:
+        return float(size), "the plan", None
     return None, "", None
 
 

@@ -40,7 +40,8 @@ class _Lines(click.ParamType):
               help="Diameter of the pin circle (side of a square frame) in mm [default: 500, or the machine's].")
 @click.option("--thread-mm", type=float, default=None,
               help="Width of the thread in mm [default: 0.25, or the machine's].")
-@click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True)
+@click.option("--frame", type=click.Choice(["circle", "square"]), default="circle", show_default=True,
+              help="Pins on a ring, or along the border of a square (a square is wound by hand: stringbot pins).")
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
 @click.option("--fit", is_flag=True, help="Paint the whole picture, letterboxed on the board, not its centre.")
 @click.option("--start-pin", type=int, default=None,
@@ -148,9 +149,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     s = p.stats
     kind = "disconnected " if not p.connected else ""
     style = f" ({p.parameters['style']})" if p.method == "fitness" else ""
-    thread = f"{s['thread_diameters']:.1f} diameters"
-    if mach is not None:      # the frame's size is known: metres (chords only; the estimate adds the wraps)
-        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    # the frame's size is known (--diameter-mm, the machine's, or the default): metres, chords only
+    thread = f"{s['thread_diameters'] * p.diameter_mm / 1000.0:.1f} m"
     click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
                f"{s['seconds']:.2f} s -> {output} (preview {preview})")
     if mach is not None:
@@ -206,7 +206,8 @@ def render_cmd(plan, output, size, binary):
                            "layer(s); expected no --binary with a colour plan (it is drawn as woven)")
         return render_colour(p, output, size)
     write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
-    how = "as 1-pixel lines" if binary else f"as woven ({p.thread_mm:g} mm thread on {p.diameter_mm:g} mm)"
+    m = p.thread_model()
+    how = "as 1-pixel lines" if binary else f"as woven ({m.thread_mm:g} mm thread on {m.diameter_mm:g} mm)"
     click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
 
 
@@ -269,7 +270,10 @@ def score_cmd(plan, image, as_json, colour):
                    f"{'SSIM':<10} {r['ssim']:.4f}   (Gaussian 11x11 window; scikit-image default 7x7: "
                    f"{r['ssim_uniform']:.4f})\n"
                    f"{'blurred':<10} {r['ssim_blurred']:.4f}   (7x7: {r['ssim_uniform_blurred']:.4f})\n"
-                   f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)")
+                   f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)\n"
+                   "SSIM compares the drawing with the picture, both 201 px (the paper's section 4.1): 1 is "
+                   "the picture itself, 0 nothing in common; higher is better. 'blurred' compares them after "
+                   "a blur (sigma 2 px), as the eye sees the painting from afar.")
 
 
 def _score_colour(p, plan, image, as_json):

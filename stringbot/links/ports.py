@@ -45,7 +45,7 @@ def _register_sim():
 
 def sim_url(machine_name, *, record=None, faults=None, realtime=False):
     """The ``sim://`` URL of the simulated ``machine_name`` (options in the query string)."""
-    from urllib.parse import urlencode
+    from urllib.parse import quote, urlencode
     query = {"machine": machine_name}
     if record:
         query["record"] = str(record)
@@ -53,7 +53,8 @@ def sim_url(machine_name, *, record=None, faults=None, realtime=False):
         query["faults"] = faults
     if realtime:
         query["realtime"] = "1"
-    return "sim://?" + urlencode(query, safe="/,@:")
+    # sim:// reads '+' as a plus (reset@230+0.4): a space goes as %20, a plus as %2B
+    return "sim://?" + urlencode(query, safe="/,@:", quote_via=quote)
 
 
 class _TcpSerial(protocol_socket.Serial):

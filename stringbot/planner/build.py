@@ -220,7 +220,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
 
         crop = fit_crop(path, frame)
     report("reading the picture")
-    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng)
+    # greedy reads the picture as ThreadTone does: cv2.resize, bilinear
+    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng,
+                                  resample="bilinear" if method == "greedy" else "lanczos")
     weights = None
     if importance is not None:
         weights = read_mask(importance, size=size, crop=pic.crop,
@@ -242,7 +244,6 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
               "importance": str(importance) if importance is not None else None}
     chords = None
     if method == "residual":
-        report("residual")
         seq, extra = _residual_run(space, pic, mask, weights, lines if lines == "auto" else k, model,
                                    start_pin=start_pin, refine=refine)
         params.update(refine=refine, thread_px=round(model.width_px(size), 4))
@@ -312,6 +313,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine)
     seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines)
     t_choose = time.perf_counter() - t
     err = canvas.error()
+    report("refining")
     seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
     area = float(w.sum())
     return seq, {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),

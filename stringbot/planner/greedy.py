@@ -140,7 +140,11 @@ class _PinLines:
 
     def __init__(self, space, size, *, nearest=False, spacing=1.0):
         self.space, self.size, self.nearest, self.spacing = space, size, nearest, spacing
-        self.rc = pin_pixels(space.pin_xy, size)
+        if nearest:
+            self.rc = pin_pixels(space.pin_xy, size)
+        else:  # ThreadTone truncates its pin coordinates: int(r + 1 + r cos a), sampled one pixel lower
+            self.rc = np.clip(np.floor(np.asarray(space.pin_xy)[:, ::-1] * (size - 1) + 1e-9), 0,
+                              size - 1).astype(np.int64)
         self.cache = {}
 
     def get_with_counts(self, p):

@@ -181,7 +181,7 @@ def _to_8bit(im):
     return im
 
 
-def _cut(im, box, size):
+def _cut(im, box, size, resample="lanczos"):
     """Cut ``box`` (may reach outside: white) from ``im`` and resample to ``size x size``.
 
     Works in strips reduced by an integer factor, so the full-resolution copy
@@ -212,7 +212,8 @@ def _cut(im, box, size):
             strip = strip.reduce(factor)
         canvas.paste(strip, (0, (sy - iy0) // factor))
     fb = ((x0 - ix0) / factor, (y0 - iy0) / factor, (x1 - ix0) / factor, (y1 - iy0) / factor)
-    return canvas.resize((size, size), Image.Resampling.LANCZOS, box=fb)
+    how = Image.Resampling.BILINEAR if resample == "bilinear" else Image.Resampling.LANCZOS
+    return canvas.resize((size, size), how, box=fb)
 
 
 def _whiten_outside(strip, origin, full):
@@ -230,7 +231,8 @@ def _whiten_outside(strip, origin, full):
     strip.paste(white, (0, 0))
 
 
-def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", rng=None, weights=None):
+def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", rng=None, weights=None,
+                 resample="lanczos"):
     """Read, crop and gray a picture.
 
     Parameters
@@ -250,6 +252,8 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
     weights : tuple of float, optional
         ``(w_r, w_g, w_b)`` to use instead of choosing them (e.g. a plan's
         recorded decolorization, to score against the very same gray).
+    resample : {"lanczos", "bilinear"}
+        The final resampling to ``size`` (bilinear: as ``cv2.resize`` does by default).
 
     Returns
     -------
@@ -288,7 +292,7 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
         if im.size[0] != w:  # decoded at a reduced scale
             k = w / im.size[0]
             box = tuple(v / k for v in box)
-        small = _cut(im, box, size)
+        small = _cut(im, box, size, resample)
     except BadInput:
         raise
     except (OSError, SyntaxError, ValueError, EOFError) as exc:

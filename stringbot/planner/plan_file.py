@@ -108,8 +108,9 @@ class Plan:
         Where each layer starts in ``sequence`` (the first is 0).
     background : str
         The board, ``"#rrggbb"``.
-    diameter_mm, thread_mm : float
-        The frame's diameter and the thread's width (see :mod:`stringbot.planner.thread`).
+    diameter_mm, thread_mm : float or None
+        The frame's diameter and the thread's width (see :mod:`stringbot.planner.thread`);
+        None where the plan does not record them (drawn with 500 mm and 0.25 mm).
     """
 
     pins: int
@@ -124,15 +125,16 @@ class Plan:
     connected: bool = True
     chords: list = field(default_factory=list)
     extra: dict = field(default_factory=dict)
-    diameter_mm: float = DEFAULT_DIAMETER_MM
-    thread_mm: float = DEFAULT_THREAD_MM
+    diameter_mm: float = None
+    thread_mm: float = None
     colors: list = field(default_factory=lambda: [MONO_COLOR])
     layer_starts: list = field(default_factory=lambda: [0])
     background: str = MONO_BACKGROUND
 
     def thread_model(self):
-        """The plan's :class:`~stringbot.planner.thread.ThreadModel`."""
-        return ThreadModel(diameter_mm=float(self.diameter_mm), thread_mm=float(self.thread_mm))
+        """The plan's :class:`~stringbot.planner.thread.ThreadModel` (500 mm / 0.25 mm where not recorded)."""
+        return ThreadModel(diameter_mm=float(self.diameter_mm or DEFAULT_DIAMETER_MM),
+                           thread_mm=float(self.thread_mm or DEFAULT_THREAD_MM))
 
     @classmethod
     def from_layers(cls, layers, *, background=MONO_BACKGROUND, **kw):
@@ -182,8 +184,6 @@ class Plan:
             "version": self.version,
             "pins": int(self.pins),
             "frame": self.frame,
-            "diameter_mm": float(self.diameter_mm),
-            "thread_mm": float(self.thread_mm),
             "pin_xy": [[round(float(x), 6), round(float(y), 6)] for x, y in np.asarray(self.pin_xy)],
             "crop": self.crop,
             "connected": bool(self.connected),
@@ -193,6 +193,9 @@ class Plan:
             "source": self.source,
             "stats": self.stats,
         })
+        for key in ("diameter_mm", "thread_mm"):
+            if getattr(self, key) is not None:
+                doc[key] = float(getattr(self, key))
         if not self.connected:
             doc["chords"] = [[int(i), int(j)] for i, j in self.chords]
         if self.version == 2:
@@ -334,21 +337,25 @@ def plan_from_json(doc, *, where="plan"):
                 raise BadInput(f"{where}: chords[{k}] is {c!r}; expected [i, j] with i != j in 0..{pins - 1}")
             chords.append((c[0], c[1]))
     size = {}
-    for key, default in (("diameter_mm", DEFAULT_DIAMETER_MM), ("thread_mm", DEFAULT_THREAD_MM)):
-        v = doc.get(key, default)
+    for key in ("diameter_mm", "thread_mm"):
+        if key not in doc:
+            size[key] = None
+            continue
+        v = doc[key]
         if not (_is_num(v) and v > 0):
             raise BadInput(f"{where}: field {key!r} is {v!r}; expected a number of millimetres > 0")
         size[key] = float(v)
-    if size["thread_mm"] >= size["diameter_mm"]:
-        raise BadInput(f"{where}: field 'thread_mm' ({size['thread_mm']:g}) is not less than 'diameter_mm' "
-                       f"({size['diameter_mm']:g}); expected a thread thinner than the frame")
+    if (size["thread_mm"] or DEFAULT_THREAD_MM) >= (size["diameter_mm"] or DEFAULT_DIAMETER_MM):
+        raise BadInput(f"{where}: field 'thread_mm' is not less than 'diameter_mm'; "
+                       "expected a thread thinner than the frame")
     method = _need(doc, "method", str, where, "a string")
     parameters = _need(doc, "parameters", dict, where, "an object")
     source = _need(doc, "source", dict, where, "an object {path, sha256, width, height}")
     stats = _need(doc, "stats", dict, where, "an object")
     known = {"format", "version", "pins", "frame", "pin_xy", "crop", "connected", "sequence",
-             "chords", "method", "parameters", "source", "stats", "diameter_mm", "thread_mm", "layers",
-             "background"}
+             "chords", "method", "parameters", "source", "stats", "layers", "background"}
+    # diameter_mm, thread_mm also stay in extra: whether the plan recorded them (not just the
+    # defaults) is for its readers to tell
     extra = {k: v for k, v in doc.items() if k not in known}
     return Plan(pins=pins, frame=frame, pin_xy=np.asarray(pin_xy, dtype=float), crop=crop,
                 sequence=list(sequence), method=method, parameters=parameters, source=source,

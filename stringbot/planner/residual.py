@@ -34,6 +34,7 @@ import logging
 import numpy as np
 
 from .greedy import _PinLines
+from .progress import report
 from .thread import SegmentStamp
 
 log = logging.getLogger(__name__)
@@ -179,6 +180,8 @@ def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_line
         canvas.apply(chords_in=[(cur, nxt)])
         seq.append(nxt)
         cur = nxt
+        if len(seq) % 200 == 0:
+            report("choosing threads", len(seq) - 1, None if auto else limit)
         if auto:
             if err < best:
                 best, best_len = err, len(seq)
