@@ -35,7 +35,7 @@ import urllib.parse
 import serial
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
 
-__all__ = ["Serial", "FORM", "parse_url", "session", "forget"]
+__all__ = ["Serial", "FORM", "parse_url", "session", "forget", "tie_on"]
 
 log = logging.getLogger(__name__)
 
@@ -153,6 +153,17 @@ def session(url):
         _SESSIONS[url] = s
         log.info("sim: new %s machine for %s", machine.name, url)
         return s
+
+
+def tie_on(url, color, pin=None):
+    """The simulated operator ties a thread of ``color`` on the machine behind ``url`` (a spool change).
+
+    No axis shows a spool change, so the operator's hands are simulated here:
+    the world's later wraps carry ``color`` (:meth:`firmware_protocol.world.World.tie_on`).
+    """
+    s = session(url)
+    with s.lock:
+        s.world.tie_on(color, pin)
 
 
 def forget(url=None):

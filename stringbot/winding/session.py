@@ -166,8 +166,12 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
         winder.start(home=job.machine["controller.homing"]
                      or bool(job.machine.values.get("controller.head_homing")))
         first = job.steps[0]
-        winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
-                   "then go on?")
+        if job.plan.is_mono:
+            winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
+                       "then go on?")
+        else:                       # the thread's colour, and a spool change before each later layer
+            from .layers import Threads
+            winder.threads = Threads(job, journal, confirm=confirm)
         with winder.stopping_on_ctrl_c("while moving to the start"):
             approach(link, job.machine, (first.moves[0].ring_deg, job.machine["head.in_mm"]),
                      tolerance(link, job.machine))
@@ -195,6 +199,11 @@ def dry_run_problem(job):
                "the winding is unchecked"
     seq = list(job.plan.sequence)
     problems = []
+    if not job.plan.is_mono and wraps == seq:
+        from .layers import layer_problems
+        wrong = layer_problems(job.plan, rec["wraps"])
+        if wrong:
+            problems.append(wrong)
     if collisions:
         first = collisions[0]
         problems.append(f"{len(collisions)} collision(s) of the head with pins (first: "
