@@ -100,7 +100,8 @@ class ScriptedOperator:
         ring, head = self._seen()
         h_in = m["head.in_mm"]
         tol = m.gap_tolerance_deg / 4
-        if self.side() == "out" or abs(head - h_in) > 1e-3:
+        close = 0.05                       # as near as a person gets it (a stepper stops on whole steps)
+        if self.side() == "out" or abs(head - h_in) > close:
             if self.side() == "out":
                 units = (self._gap + 0.5) if self._gap is not None else round(
                     (ring - m["ring.pin0_angle_deg"]) / m.pitch_deg - 0.5) + 0.5
@@ -110,7 +111,7 @@ class ScriptedOperator:
             return self._did(f"head {h_in - head:+.4f}")
         if self._pin is not None:
             target = self._angle(self._pin, ring)
-            if abs(target - ring) > 1e-3:
+            if abs(target - ring) > close:
                 return self._did(f"ring {target - ring:+.4f}")
         return "done"
 

@@ -126,7 +126,7 @@ def test_a_measured_stop_position_is_the_truth_after_a_reboot(tmp_path):
     stop = read_journal(job.journal_path).last_stop
     assert stop["position"] is not None
     emu = protocol_sim.session(job.url).emulator
-    emu._brownout()                                    # the reboot: the firmware's position is wiped
+    emu._reboot()                                      # the reboot: the firmware's position is wiped
     resume_plan(job, confirm=None, link_options=FAST)
     check_world(record, plan)
     state = read_journal(job.journal_path)
