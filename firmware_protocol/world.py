@@ -24,6 +24,17 @@ circle (arriving at it, or crossing it inside a segment) must happen within
 the circle the ring may only turn within that one gap's window; anything else
 is a collision with a pin.
 
+Threads
+-------
+A spool change is the operator's work, which no axis shows: the operator
+tells the world (:meth:`World.tie_on`, reached through ``sim://``'s
+:func:`firmware_protocol.urlhandler.protocol_sim.tie_on`) that a thread of a
+colour is now tied on, and every later wrap carries that colour (``"color"``
+in the record's wraps; a world nobody told has none).  The record's
+``spools`` lists each tie-on: its colour, pin, how many wraps came before it
+and whether the head was out (a thread tied on with the head out is caught
+on the wrong side of the pin circle).
+
 Wraps
 -----
 When the eyelet leaves the IN side and reaches the OUT side, the ring position
@@ -74,13 +85,18 @@ _EPS = 1e-9
 
 @dataclass(frozen=True)
 class Wrap:
-    """One pin the thread went round: ``pin`` index and ``direction`` (+1 ring axis up, -1 down)."""
+    """One pin the thread went round: ``pin`` index and ``direction`` (+1 ring axis up, -1 down),
+    and the ``color`` of the thread tied on at the time (None: nobody said)."""
 
     pin: int
     direction: int
+    color: str | None = None
 
     def as_dict(self):
-        return {"pin": self.pin, "direction": self.direction}
+        d = {"pin": self.pin, "direction": self.direction}
+        if self.color is not None:
+            d["color"] = self.color
+        return d
 
 
 def _write_atomic(path, text):
@@ -163,6 +179,8 @@ class World:
         self.ring_travel_deg = 0.0
         self._side = -1             # last strict side: -1 IN, +1 OUT
         self._p_out = None          # pin units where the eyelet left the circle outwards
+        self.thread_color = None    # the thread tied on (the operator says, :meth:`tie_on`)
+        self.spools = []
         if self.record_path is not None:
             self._save()
 
@@ -185,8 +203,17 @@ class World:
         """Ring axis degrees -> pin units (pin ``k`` faces the station at ``k``)."""
         return (ring_deg - self._pin0) / self._pitch
 
+    def tie_on(self, color, pin=None):
+        """The operator tied a thread of ``color`` (``"#rrggbb"``) on, at ``pin``: later wraps are of it."""
+        self.thread_color = str(color)
+        self.spools.append({"color": self.thread_color, "pin": pin, "after_wraps": len(self.wraps),
+                            "head_out": self.head_out})
+        if self.record_path is not None:
+            self._save()
+
     def record(self):
         """The world's record as a JSON-ready dict."""
+        spools = {"spools": [dict(s) for s in self.spools]} if self.spools else {}
         return {
             "machine": self.machine.name,
             "pins": self._pins,
@@ -200,6 +227,7 @@ class World:
             "head_side": self.head_side,
             "head_out": self.head_out,
             "ring_travel_deg": self.ring_travel_deg,
+            **spools,
         }
 
     # ---- the record file ----------------------------------------------------------------
@@ -312,7 +340,7 @@ class World:
         else:
             ks = range(math.ceil(p_out - _EPS) - 1, math.floor(p + _EPS), -1)
             direction = -1
-        new = [Wrap(pin=k % self._pins, direction=direction) for k in ks]
+        new = [Wrap(pin=k % self._pins, direction=direction, color=self.thread_color) for k in ks]
         self.wraps.extend(new)
         return new
 

@@ -3,7 +3,7 @@
 The examples run (``-m slow``) in a fresh copy of the repository's files (what
 ``git clone`` gives: README, docs, examples, machines), in order: README first,
 then docs/ alphabetically, each block as a bash script.  A line ending in ``&``
-starts something in the background; a line with a ``# exit N`` comment must
+starts something in the background; a line whose ``#`` comment says ``exit N`` must
 exit N; every other line must exit 0.  The environment set-up of the quick
 start (venv, pip) is already done by the test run itself and is left out.
 """
@@ -38,21 +38,23 @@ def runnable(line):
 
 
 def script(lines):
-    out = ["set -u", "cd \"$WORKDIR\""]
+    # whatever an example left in the background is stopped as Ctrl-C would, then for good
+    out = ["set -u", "cd \"$WORKDIR\"",
+           "stop_all() { kill -INT $(jobs -p) 2>/dev/null; sleep 1; kill -KILL $(jobs -p) 2>/dev/null; wait 2>/dev/null; }"]
     for line in lines:
         line = line.rstrip()
         cmd = runnable(line)
         if cmd is None or cmd.startswith("#"):
             continue
-        m = re.search(r"#\s*exit (\d+)", cmd)
+        m = re.search(r"#.*\bexit (\d+)", cmd)
         want = int(m.group(1)) if m else 0
         if cmd.endswith("&"):
             out.append(cmd)
             continue
         quoted = cmd.replace("'", "'\"'\"'")
         out.append(f"{cmd}\nrc=$?; if [ $rc -ne {want} ]; then echo 'EXAMPLE FAILED (exit '$rc'): {quoted}' >&2; "
-                   "kill $(jobs -p) 2>/dev/null; exit 1; fi")
-    out.append("kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; exit 0")
+                   "stop_all; exit 1; fi")
+    out.append("stop_all; exit 0")
     return "\n".join(out)
 
 

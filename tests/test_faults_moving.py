@@ -298,5 +298,5 @@ def test_marlin_ignore_answers_ok_and_does_nothing():
 def test_a_plus_in_a_sim_url_is_a_plus():
     from firmware_protocol.urlhandler.protocol_sim import parse_url
     assert parse_url("sim://?faults=reset@230+0.4,ignore@9+")["faults"] == "reset@230+0.4,ignore@9+"
-    assert parse_url("sim://?faults=reset@3,+garble@7")["faults"] == "reset@3,garble@7"   # urlencode's space
     assert parse_url("sim://?faults=reset@230%2B0.4")["faults"] == "reset@230+0.4"
+    assert parse_url("sim://?record=my%20rec+1.json")["record"] == "my rec+1.json"

@@ -31,7 +31,7 @@ def test_fluidnc_exchange():
         (b"$I\n", b"[VER:3.7 FluidNC v3.7.8:]\r\n[OPT:PHSEW]\r\n[MSG:Machine: stringbot simulator]\r\n" + OK),
         (b"G0 A6 X10\n", OK),
         (b"G4 P0\n", OK),
-        # FluidNC reports its motors' steps too: A6 at 44.4444 steps/deg is 267 steps, 6.008 deg
+        # A 6 at 44.4444 steps/deg stands on step 267: FluidNC reports whole steps (6.008)
         (b"?", b"<Idle|MPos:10.000,0.000,0.000,6.008|FS:0,0|WCO:0.000,0.000,0.000,0.000>\r\n"),
         (b"?", b"<Idle|MPos:10.000,0.000,0.000,6.008|FS:0,0|Ov:100,100,100>\r\n"),
     ])

@@ -85,5 +85,9 @@ def test_dry_run_problem_names_wraps_that_differ(tmp_path, plan):
     record.write_text(json.dumps({"wraps": [{"pin": p, "direction": 1} for p in seq[:-1]],
                                   "collisions": []}))
     assert f"wrapped {len(seq) - 1} pins" in session.dry_run_problem(job)
+    # the head driven against the end of its travel: the world's crashes
+    record.write_text(json.dumps({"wraps": [{"pin": p, "direction": 1} for p in seq], "collisions": [],
+                                  "crashes": [{"head_mm": 15.0, "driven_to_mm": 24.0}]}))
+    assert "1 crash(es)" in session.dry_run_problem(job)
     # no record asked for, or a real machine's port: nothing to check
     assert session.dry_run_problem(session.load_job(plan[0], "grbl-ring")) is None

@@ -35,7 +35,7 @@ import urllib.parse
 import serial
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
 
-__all__ = ["Serial", "FORM", "parse_url", "session", "forget"]
+__all__ = ["Serial", "FORM", "parse_url", "session", "forget", "tie_on"]
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +91,9 @@ def parse_url(url):
         raise SerialException(f"{FORM}: unexpected {parts.netloc + parts.path!r} before the '?'")
     opts = {"machine": "grbl-ring", "record": None, "realtime": False, "faults": "", "set": []}
     try:
-        query = urllib.parse.parse_qs(parts.query, keep_blank_values=True, strict_parsing=bool(parts.query))
+        # a '+' is a plus (reset@230+0.4, a file name), never a space: write a space as %20
+        query = urllib.parse.parse_qs(parts.query.replace("+", "%2B"), keep_blank_values=True,
+                                      strict_parsing=bool(parts.query))
     except ValueError as exc:
         raise SerialException(f"{FORM}: {exc}") from None
     for option, values in query.items():
@@ -116,21 +118,10 @@ def parse_url(url):
                 raise SerialException(f"{FORM}: realtime={value!r}; expected 0 or 1")
             opts["realtime"] = value == "1"
         elif option == "faults":
-            opts["faults"] = _raw_faults(parts.query)
+            opts["faults"] = value
         else:
             raise SerialException(f"{FORM}: unknown option {option!r}")
     return opts
-
-
-def _raw_faults(query):
-    """The faults option with a '+' kept a plus (``reset@230+0.4`` typed by hand); a '+' that
-    stands for a space (``urlencode``'s, after a comma) is dropped."""
-    for part in query.split("&"):
-        name, _, value = part.partition("=")
-        if urllib.parse.unquote_plus(name) == "faults":
-            items = urllib.parse.unquote(value).split(",")
-            return ",".join(item.strip().lstrip("+").strip() for item in items)
-    return ""
 
 
 def session(url):
@@ -162,6 +153,17 @@ def session(url):
         _SESSIONS[url] = s
         log.info("sim: new %s machine for %s", machine.name, url)
         return s
+
+
+def tie_on(url, color, pin=None):
+    """The simulated operator ties a thread of ``color`` on the machine behind ``url`` (a spool change).
+
+    No axis shows a spool change, so the operator's hands are simulated here:
+    the world's later wraps carry ``color`` (:meth:`firmware_protocol.world.World.tie_on`).
+    """
+    s = session(url)
+    with s.lock:
+        s.world.tie_on(color, pin)
 
 
 def forget(url=None):

@@ -83,8 +83,9 @@ def gcode_cmd(plan, machine, output):
         write_atomic(output, text, what="G-code")
     from ..motion import estimate
     est = estimate(p, m)
+    changes = f", {len(p.colors) - 1} spool change(s) (M0)" if len(p.colors) > 1 else ""
     click.echo(f"{len(p.sequence)} pins, {text.count(chr(10))} lines, about {format_duration(est.seconds)}, "
-               f"{est.thread_m:.1f} m of thread -> {output}", err=output == "-")
+               f"{est.thread_m:.1f} m of thread{changes} -> {output}", err=output == "-")
 
 
 GCODE_HEAD = "; stringbot winding job"
@@ -115,13 +116,21 @@ def estimate_cmd(plan, machine, as_json):
     """Machine time, ring travel and thread length of winding PLAN on MACHINE."""
     import json
 
-    from ..motion import estimate
+    from ..motion import estimate, format_duration
 
     p, m = _plan_and_machine(plan, machine)
     est = estimate(p, m)
+    layers = None
+    if not p.is_mono:
+        from ..motion.layers import layer_estimates
+        layers = layer_estimates(p, m)
     if as_json:
-        click.echo(json.dumps({"plan": plan, "machine": m.name, **est.as_dict()}))
+        extra = {"layers": [vars(le) for le in layers]} if layers else {}
+        click.echo(json.dumps({"plan": plan, "machine": m.name, **est.as_dict(), **extra}))
     else:
         click.echo(f"{'plan':<14} {plan}\n{'machine':<14} {m.name} ({m.path})")
         for line in _estimate_lines(est):
             click.echo(line)
+        for le in layers or []:
+            click.echo(f"{'layer ' + str(le.index + 1):<14} {le.color}: {le.thread_m:.1f} m of thread, "
+                       f"{format_duration(le.seconds)}, {le.steps} pins, tie on at pin {le.tie_on_pin}")

@@ -121,6 +121,8 @@ def pins_cmd(plan, output, diameter_mm, machine):
     check_output_path(output, what="pin list", allow_stdout=True)      # before the work
     check_not_same_file(output, plan, what="pin list", source_what="plan")
     p = read_plan(plan)
+    from ..planner.plan_file import require_one_layer
+    require_one_layer(p, "stringbot pins")
     size, size_from, mach = _frame_size(p, diameter_mm, machine)
     thread_m = None
     if mach is not None:
@@ -160,6 +162,8 @@ def animate_cmd(plan, output, frames, size, fps):
     check_output_path(output, what="animation")
     check_not_same_file(output, plan, what="animation", source_what="plan")
     p = read_plan(plan)
+    from ..planner.plan_file import require_one_layer
+    require_one_layer(p, "stringbot animate")
     images = [f for f, _ in growth_frames(p, frames=frames, size=size)]
     try:
         data = gif_bytes(images, fps=fps) if ext == ".gif" else mp4_bytes(images, fps=fps)

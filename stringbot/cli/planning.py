@@ -70,9 +70,14 @@ class _Lines(click.ParamType):
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
+@click.option("--colors", default=None, metavar="LIST|auto:N",
+              help="Thread colours, one layer each: names or #rrggbb (black,crimson,#1f5bb5), or auto:N to pick N "
+                   "from the picture; plans in colour (a version 2 plan).")
+@click.option("--background", default=None, metavar="white|black|#rrggbb",
+              help="Colour of the board the threads are wound over [default: white]; plans in colour.")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
              start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
-             no_cache, force):
+             no_cache, force, colors, background):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
@@ -103,6 +108,15 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     from ..planner.build import thread_model
 
     thread_model(diameter_mm, thread_mm)  # bad sizes are refused before any work
+    if colors is not None or background is not None:
+        from .colour import plan_colour_cmd
+        ctx = click.get_current_context()
+        given = {name for name in ctx.params
+                 if ctx.get_parameter_source(name) is click.core.ParameterSource.COMMANDLINE}
+        return plan_colour_cmd(image=image, output=output, preview=preview, colors=colors, background=background,
+                               pins=pins, mach=mach, machine=machine, frame=frame, crop=crop, start_pin=start_pin,
+                               size=size, lines=lines, no_cache=no_cache, given=given,
+                               model=thread_model(diameter_mm, thread_mm), force=force)
     preview = preview or os.path.splitext(output)[0] + ".png"
     check_output_path(output, what="plan")
     check_output_path(preview, what="preview")
@@ -174,7 +188,8 @@ def _refuse_a_wound_plan(output):
 @click.option("--binary", is_flag=True,
               help="The paper's drawing (black 1-pixel lines) instead of the threads as woven.")
 def render_cmd(plan, output, size, binary):
-    """Draw PLAN as woven: its threads at their real width (the plan's thread_mm on diameter_mm)."""
+    """Draw PLAN as woven: its threads at their real width (the plan's thread_mm on diameter_mm); a colour
+    plan in its colours, layer on layer."""
     from .._files import check_not_same_file, check_output_path, write_atomic
     from ..planner.plan_file import read_plan
     from ..planner.render import draw, draw_woven, png_bytes
@@ -184,6 +199,12 @@ def render_cmd(plan, output, size, binary):
     check_output_path(output, what="drawing")
     check_not_same_file(output, plan, what="drawing", source_what="plan")
     p = read_plan(plan)
+    if not p.is_mono:
+        from .colour import render_colour
+        if binary:
+            raise BadInput(f"--binary draws one black thread, but plan {plan!r} has {len(p.colors)} colour "
+                           "layer(s); expected no --binary with a colour plan (it is drawn as woven)")
+        return render_colour(p, output, size)
     write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
     m = p.thread_model()
     how = "as 1-pixel lines" if binary else f"as woven ({m.thread_mm:g} mm thread on {m.diameter_mm:g} mm)"
@@ -194,7 +215,9 @@ def render_cmd(plan, output, size, binary):
 @click.argument("plan", type=click.Path(path_type=str))
 @click.argument("image", required=False, type=click.Path(path_type=str))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-def score_cmd(plan, image, as_json):
+@click.option("--colour", "colour", is_flag=True,
+              help="Score a one-colour plan as a colour plan would be (always so for a colour plan).")
+def score_cmd(plan, image, as_json, colour):
     """Score PLAN against IMAGE (default: the plan's source).
 
     The paper's SSIM (section 4.1: 1-pixel chords at 1001 px, both at 201 px,
@@ -203,6 +226,10 @@ def score_cmd(plan, image, as_json):
     woven at 2048 px with a thread 1/2048 of the frame wide, box-filtered to
     512 px, against the picture at 512 px, both blurred by sigma 2 px: RMS over
     the frame, gray levels 0..1, lower is better).
+
+    A colour plan (and any plan with --colour) is scored in colour: the mean
+    CIEDE2000 between the picture and the plan as woven (both at 201 px,
+    blurred by sigma 2 px; lower is better) and the SSIM of their luminances.
     """
     import json
     import os
@@ -219,6 +246,8 @@ def score_cmd(plan, image, as_json):
         beside = os.path.join(os.path.dirname(plan), image)
         if not os.path.isabs(image) and not os.path.exists(image) and os.path.exists(beside):
             image = beside  # a relative source path, taken from the plan's folder
+    if colour or not p.is_mono:
+        return _score_colour(p, plan, image, as_json)
     gray = p.parameters.get("gray_requested", "decolor")
     weights = p.parameters.get("gray_weights")
     if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):
@@ -245,3 +274,20 @@ def score_cmd(plan, image, as_json):
                    "SSIM compares the drawing with the picture, both 201 px (the paper's section 4.1): 1 is "
                    "the picture itself, 0 nothing in common; higher is better. 'blurred' compares them after "
                    "a blur (sigma 2 px), as the eye sees the painting from afar.")
+
+
+def _score_colour(p, plan, image, as_json):
+    import json
+
+    from .colour import score_colour
+
+    r = score_colour(p, plan, image)
+    if as_json:
+        click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "colors": p.colors,
+                               "background": p.background, "lines": r["lines"],
+                               **{k: round(v, 4) for k, v in r.items() if k != "lines"}}))
+        return
+    click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} {p.method}\n"
+               f"{'threads':<10} {', '.join(p.colors)} on {p.background}\n{'lines':<10} {r['lines']}\n"
+               f"{'colour':<10} {r['delta_e']:.2f}   (mean CIEDE2000 as woven, blurred; lower is better)\n"
+               f"{'SSIM':<10} {r['ssim']:.4f}   (luminance; blurred: {r['ssim_blurred']:.4f})")

@@ -117,7 +117,7 @@ def estimate(plan, machine, *, steps=None):
     -------
     Estimate
     """
-    from .hooking import hook_steps
+    from .hooking import hook_steps, thread_neighbours
     if steps is None:
         steps = hook_steps(plan, machine)
     ring_feed, ring_acc = machine["ring.feed_deg_per_min"], machine["ring.accel_deg_per_s2"]
@@ -141,13 +141,12 @@ def estimate(plan, machine, *, steps=None):
     seq = [int(p) for p in plan.sequence]
     bound = sum(min((b - a) % pins, (a - b) % pins) for a, b in zip(seq[:-1], seq[1:])) * pitch
     diameter = machine["ring.diameter_mm"]
-    chords = sum(diameter * math.sin(math.pi * ((b - a) % pins) / pins) for a, b in zip(seq[:-1], seq[1:]))
+    chords = sum(diameter * math.sin(math.pi * ((b - a) % pins) / pins) for a, b in plan.chord_list())
     radius = (machine["ring.pin_diameter_mm"] + machine["thread.diameter_mm"]) / 2.0
     wraps = 0.0
+    around = thread_neighbours(plan)
     for step in steps:
-        k = step.index
-        prev = seq[k - 1] if k > 0 else None
-        nxt = seq[k + 1] if k + 1 < len(seq) else None
+        prev, nxt = around[step.index]
         wraps += radius * _turn(prev, step.pin, nxt, pins, step.direction)
     return Estimate(seconds=seconds, ring_travel_deg=ring_travel, lower_bound_deg=bound,
                     thread_m=(chords + wraps) / 1000.0, wrap_m=wraps / 1000.0,

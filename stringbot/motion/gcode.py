@@ -9,6 +9,11 @@ program (``M2`` versus an LCD message, since Marlin has no ``M2``).
 
 The host winds step by step: it sends ``dialect.step_lines(step)``, then
 ``dialect.sync()``, and records the step once the sync is acknowledged.
+
+A colour plan's program pauses before each layer but the first, in the
+dialect's own way (``M0``: GRBL, grblHAL and FluidNC hold until cycle start, ``~``;
+Marlin shows an ``M117`` message and waits for the click of its LCD), after
+a comment naming the thread to cut and the colour to tie on at which pin.
 """
 
 from .estimate import estimate, format_duration
@@ -132,6 +137,10 @@ class GcodeDialect:
     def end(self):
         return [self.sync(), "M2"]
 
+    def spool_change(self, message):
+        """The pause of a spool change (``message``: what to tie on where, for a display)."""
+        return ["M0"]
+
 
 class GrblDialect(GcodeDialect):
     """GRBL 1.1: X, Y, Z only; ``$H``; ``G4 P0`` as the sync point; ``M2`` ends."""
@@ -173,6 +182,9 @@ class MarlinDialect(GcodeDialect):
 
     def end(self):
         return [self.sync(), "M117 stringbot: done"]
+
+    def spool_change(self, message):
+        return [self.sync(), f"M117 {message}", "M0"]
 
 
 _DIALECTS = {"grbl": GrblDialect, "grblhal": GrblHalDialect, "fluidnc": FluidNcDialect, "marlin": MarlinDialect}
@@ -224,13 +236,46 @@ def gcode_job(plan, machine, *, plan_name=None):
         f"; estimated machine time: {format_duration(est.seconds)}",
         f"; thread: {est.thread_m:.1f} m; ring travel {est.ring_travel_deg:.0f} deg "
         f"(shortest-arc lower bound {est.lower_bound_deg:.0f} deg)",
-        "; tie the thread on at the start; the machine hooks every pin of the sequence",
     ]
+    changes = {}
+    if plan.is_mono:
+        lines.append("; tie the thread on at the start; the machine hooks every pin of the sequence")
+    else:
+        lines, changes = _colour_header(plan, machine, steps, lines)
     lines += dialect.home()         # first: a GRBL that homes starts in alarm and refuses G-code until $H
     lines += dialect.preamble()
     prev = None
     for step in steps:
+        if step.index in changes:
+            comment, message = changes[step.index]
+            lines += [comment] + dialect.spool_change(message)
         lines += dialect.step_lines(step, prev)
         prev = step.moves[-1]
     lines += dialect.end()
     return "\n".join(lines) + "\n"
+
+
+def _colour_header(plan, machine, steps, lines):
+    """A colour plan: the threads in the header, and the spool change before each later layer."""
+    from ..planner.palette import color_name
+    from .layers import layer_estimates
+
+    layers = layer_estimates(plan, machine, steps=steps)
+    n = len(layers)
+    first = layers[0]
+    lines = lines + [f"; {n} layers, each its own thread, wound in this order (later ones lie on top); "
+                     f"{n - 1} spool change(s), each a pause (M0)"]
+    for le in layers:
+        lines.append(f"; layer {le.index + 1}: {color_name(le.color)} ({le.color}), {le.steps} pins, "
+                     f"{le.thread_m:.1f} m of thread, {format_duration(le.seconds)}; tie on at pin {le.tie_on_pin}")
+    lines.append(f"; tie the {color_name(first.color)} ({first.color}) thread on at pin {first.tie_on_pin} to "
+                 "start; the machine hooks every pin of every layer")
+    changes = {}
+    for prev, le in zip(layers[:-1], layers[1:]):
+        last = plan.sequence[le.first_step - 1]
+        name = color_name(le.color)
+        comment = (f"; spool change {le.index} of {n - 1}: cut the {color_name(prev.color)} ({prev.color}) thread "
+                   f"and tie it off at pin {last}; tie on {name} ({le.color}) at pin {le.tie_on_pin} "
+                   f"(layer {le.index + 1} of {n}), then resume")
+        changes[le.first_step] = (comment, f"Tie {name} on pin {le.tie_on_pin}")
+    return lines, changes

@@ -41,7 +41,8 @@ outside from the incoming side to the outgoing side is the short turn, so:
   whose approach gap is nearer is taken;
 * the first pin (the operator ties the thread end on): leave on ``b``'s side,
   +1 when ``db <= N / 2``; the last pin: arrive on ``a``'s side, +1 when
-  ``da >= N / 2``.
+  ``da >= N / 2``.  In a colour plan every layer is its own thread: its first
+  and last pins are a thread's ends.
 
 ``[winding] wrap_direction = "cw"`` or ``"ccw"`` in the machine file fixes the
 direction for every pin instead.
@@ -52,7 +53,7 @@ from dataclasses import dataclass, field
 
 from ..errors import BadInput
 
-__all__ = ["Move", "HookStep", "hook_steps", "wrap_direction", "check_plan_fits"]
+__all__ = ["Move", "HookStep", "hook_steps", "wrap_direction", "check_plan_fits", "thread_neighbours"]
 
 
 @dataclass(frozen=True)
@@ -149,6 +150,16 @@ def wrap_direction(prev, pin, nxt, pins):
     return 1 if db < da else -1
 
 
+def thread_neighbours(plan):
+    """``(prev, next)`` pin of each step along its own thread (None at a thread's ends: a colour
+    plan's layers are separate threads)."""
+    seq = [int(p) for p in plan.sequence]
+    starts = set(getattr(plan, "layer_starts", [0]))
+    ends = {s - 1 for s in starts} | {len(seq) - 1}
+    return [(seq[k - 1] if k not in starts else None, seq[k + 1] if k not in ends else None)
+            for k in range(len(seq))]
+
+
 def _fixed_direction(machine):
     return {"auto": None, "cw": 1, "ccw": -1}[machine["winding.wrap_direction"]]
 
@@ -213,10 +224,10 @@ def hook_steps(plan, machine, *, start_ring_deg=None, start_index=0):
     if isinstance(start_index, bool) or not isinstance(start_index, int) or not 0 <= start_index <= total:
         raise BadInput(f"start step is {start_index!r}; expected a step index 0..{total}")
     steps = []
+    around = thread_neighbours(plan)
     for k in range(start_index, total):
         pin = seq[k]
-        prev = seq[k - 1] if k > 0 else None
-        nxt = seq[k + 1] if k + 1 < total else None
+        prev, nxt = around[k]
         d = fixed if fixed is not None else wrap_direction(prev, pin, nxt, pins)
         if d is None:  # free choice: the nearer approach gap
             options = []

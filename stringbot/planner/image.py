@@ -53,14 +53,18 @@ class Picture:
         ``"decolor"`` (with ``weights``), ``"luminance"`` or ``"gray"`` (already gray).
     weights : tuple of float or None
         ``(w_r, w_g, w_b)`` chosen by the decolorization.
+    rgb : ndarray of float32, shape (size, size, 3) or None
+        The crop in colour (sRGB values in [0, 1]); a gray picture's gray in
+        all three channels.  None when not read from a file.
     """
 
-    def __init__(self, gray, crop, source, gray_method, weights=None):
+    def __init__(self, gray, crop, source, gray_method, weights=None, rgb=None):
         self.gray = gray
         self.crop = crop
         self.source = source
         self.gray_method = gray_method
         self.weights = weights
+        self.rgb = rgb
 
 
 def sha256_file(path):
@@ -297,10 +301,11 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
         raise BadInput(f"{what} {str(path)!r} is too large to read in memory; expected a smaller picture") from None
     source = {"path": str(path), "sha256": sha256_file(path), "width": int(w), "height": int(h)}
     if small.mode == "L":
-        return Picture(np.asarray(small, dtype=np.float32), crop, source, "gray")
+        g = np.asarray(small, dtype=np.float32)
+        return Picture(g, crop, source, "gray", rgb=np.repeat(g[..., None] / 255.0, 3, axis=2))
     rgb = np.asarray(small, dtype=np.float32) / 255.0
     if np.ptp(rgb, axis=2).max() < 1.0 / 255:
-        return Picture(rgb[..., 0] * 255.0, crop, source, "gray")
+        return Picture(rgb[..., 0] * 255.0, crop, source, "gray", rgb=rgb)
     if weights is not None:
         wts = tuple(float(v) for v in weights)
     elif gray == "luminance":
@@ -310,7 +315,7 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
     else:
         raise ValueError(f"gray {gray!r}; expected 'decolor' or 'luminance'")
     g = (rgb @ np.asarray(wts, dtype=np.float32)) * 255.0
-    return Picture(np.clip(g, 0, 255).astype(np.float32), crop, source, gray, tuple(float(v) for v in wts))
+    return Picture(np.clip(g, 0, 255).astype(np.float32), crop, source, gray, tuple(float(v) for v in wts), rgb=rgb)
 
 
 def decolorize(rgb, *, sigma=0.05, rng=None):

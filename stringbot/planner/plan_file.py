@@ -16,11 +16,26 @@ A disconnected plan (``--disconnected``) has ``"connected": false`` and a chord
 set ``"chords": [[i, j], ...]`` instead of a sequence; it can be rendered and
 scored but not wound.  Unknown fields are ignored (kept in ``extra``); a wrong
 or missing required field is a :class:`~stringbot.errors.BadInput` naming it.
+
+Version 2 (colour) has, instead of ``sequence``, the layers in winding order
+(later layers lie on top), each one continuous thread, and the board::
+
+    {"format": "stringbot-plan", "version": 2, ...,
+     "layers": [{"color": "#1b2550", "sequence": [0, 151, ...]}, {"color": "#c8102e", "sequence": [...]}],
+     "background": "#ffffff", ...}
+
+Every plan has layers: a version 1 plan is one layer of black thread
+(``#000000``) on a white board, and a plan that is exactly that is still
+written as version 1 (so that every reader of version 1 reads it).
+:attr:`Plan.sequence` is the pins in the order the machine hooks them: the
+layers one after the other (for one layer, its sequence); a chord joins two
+pins of the same layer only (:meth:`Plan.chord_list`).
 """
 
 import hashlib
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,11 +45,34 @@ from .._files import write_atomic
 from ..errors import BadInput
 from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
 
-__all__ = ["Plan", "read_plan", "write_plan", "FORMAT", "VERSION"]
+__all__ = ["Plan", "Layer", "read_plan", "write_plan", "FORMAT", "VERSION", "VERSIONS", "MONO_COLOR",
+           "MONO_BACKGROUND", "require_one_layer"]
 
 FORMAT = "stringbot-plan"
-VERSION = 1
+VERSION = 1          # what a black-on-white, one-layer plan is written as
+VERSIONS = (1, 2)    # what is read
 FRAMES = ("circle", "square")
+MONO_COLOR, MONO_BACKGROUND = "#000000", "#ffffff"
+_HEX = re.compile(r"^#[0-9a-f]{6}$")
+
+
+@dataclass(frozen=True)
+class Layer:
+    """One thread of a plan: its colour and its pins in winding order.
+
+    Attributes
+    ----------
+    color : str
+        ``"#rrggbb"``.
+    sequence : list of int
+    """
+
+    color: str
+    sequence: list
+
+    def chords(self):
+        """The layer's chords as ``(i, j)`` pairs, in winding order."""
+        return list(zip(self.sequence[:-1], self.sequence[1:]))
 
 
 @dataclass
@@ -64,6 +102,12 @@ class Plan:
         False for a chord set (``chords``) that cannot be wound.
     chords : list of (int, int)
         The chord set of a disconnected plan.
+    colors : list of str
+        The colour of each layer's thread (``"#rrggbb"``), in winding order.
+    layer_starts : list of int
+        Where each layer starts in ``sequence`` (the first is 0).
+    background : str
+        The board, ``"#rrggbb"``.
     diameter_mm, thread_mm : float or None
         The frame's diameter and the thread's width (see :mod:`stringbot.planner.thread`);
         None where the plan does not record them (drawn with 500 mm and 0.25 mm).
@@ -83,23 +127,61 @@ class Plan:
     extra: dict = field(default_factory=dict)
     diameter_mm: float = None
     thread_mm: float = None
+    colors: list = field(default_factory=lambda: [MONO_COLOR])
+    layer_starts: list = field(default_factory=lambda: [0])
+    background: str = MONO_BACKGROUND
 
     def thread_model(self):
         """The plan's :class:`~stringbot.planner.thread.ThreadModel` (500 mm / 0.25 mm where not recorded)."""
         return ThreadModel(diameter_mm=float(self.diameter_mm or DEFAULT_DIAMETER_MM),
                            thread_mm=float(self.thread_mm or DEFAULT_THREAD_MM))
 
+    @classmethod
+    def from_layers(cls, layers, *, background=MONO_BACKGROUND, **kw):
+        """A plan of ``layers`` (:class:`Layer` or ``(color, sequence)``, winding order)."""
+        layers = [lay if isinstance(lay, Layer) else Layer(*lay) for lay in layers]
+        starts, seq = [], []
+        for lay in layers:
+            starts.append(len(seq))
+            seq += [int(p) for p in lay.sequence]
+        return cls(sequence=seq, colors=[lay.color for lay in layers], layer_starts=starts,
+                   background=background, **kw)
+
+    @property
+    def layers(self):
+        """The layers in winding order (one for a mono plan)."""
+        ends = list(self.layer_starts[1:]) + [len(self.sequence)]
+        return [Layer(c, list(self.sequence[a:b])) for c, a, b in zip(self.colors, self.layer_starts, ends)]
+
+    @property
+    def is_mono(self):
+        """One layer of black thread on a white board: what version 1 describes."""
+        return len(self.colors) == 1 and self.colors[0] == MONO_COLOR and self.background == MONO_BACKGROUND
+
+    @property
+    def version(self):
+        return 1 if self.is_mono else 2
+
+    def layer_of(self, step):
+        """The layer (0..) that step ``step`` (an index into ``sequence``) belongs to."""
+        k = 0
+        while k + 1 < len(self.layer_starts) and self.layer_starts[k + 1] <= step:
+            k += 1
+        return k
+
     def chord_list(self):
-        """All chords as a list of ``(i, j)`` pairs, connected or not."""
+        """All chords as a list of ``(i, j)`` pairs, connected or not (never from one layer to the next)."""
         if self.connected:
-            return list(zip(self.sequence[:-1], self.sequence[1:]))
+            if len(self.layer_starts) == 1:
+                return list(zip(self.sequence[:-1], self.sequence[1:]))
+            return [c for lay in self.layers for c in lay.chords()]
         return [tuple(c) for c in self.chords]
 
     def to_json(self):
         doc = dict(self.extra)
         doc.update({
             "format": FORMAT,
-            "version": VERSION,
+            "version": self.version,
             "pins": int(self.pins),
             "frame": self.frame,
             "pin_xy": [[round(float(x), 6), round(float(y), 6)] for x, y in np.asarray(self.pin_xy)],
@@ -116,14 +198,29 @@ class Plan:
                 doc[key] = float(getattr(self, key))
         if not self.connected:
             doc["chords"] = [[int(i), int(j)] for i, j in self.chords]
+        if self.version == 2:
+            del doc["sequence"]
+            doc["layers"] = [{"color": lay.color, "sequence": [int(p) for p in lay.sequence]}
+                             for lay in self.layers]
+            doc["background"] = self.background
         return json.dumps(doc, indent=1, sort_keys=False) + "\n"
 
     def sha256(self):
-        """Hash of what the machine would do: pins, frame and the chords, in order."""
+        """Hash of what the machine would do: pins, frame and the chords, in order (and the threads)."""
         h = hashlib.sha256()
-        h.update(json.dumps([self.pins, self.frame, self.connected, [int(p) for p in self.sequence],
-                             [[int(i), int(j)] for i, j in self.chords]]).encode())
+        what = [self.pins, self.frame, self.connected, [int(p) for p in self.sequence],
+                [[int(i), int(j)] for i, j in self.chords]]
+        if not self.is_mono:
+            what += [list(self.colors), [int(s) for s in self.layer_starts], self.background]
+        h.update(json.dumps(what).encode())
         return h.hexdigest()
+
+
+def require_one_layer(plan, what):
+    """Raise :class:`BadInput` for a plan of several layers given to ``what``, which winds or draws one thread."""
+    if len(plan.colors) > 1:
+        raise BadInput(f"{what} works on a plan of one thread, but this plan has {len(plan.colors)} colour "
+                       f"layers ({', '.join(plan.colors)}); expected a one-colour plan")
 
 
 def write_plan(plan, path):
@@ -179,8 +276,11 @@ def plan_from_json(doc, *, where="plan"):
     if doc.get("format") != FORMAT:
         raise BadInput(f"{where}: field 'format' is {doc.get('format')!r}; expected {FORMAT!r}")
     version = _need(doc, "version", int, where, "an integer")
-    if version != VERSION:
-        raise BadInput(f"{where}: version {version} is not one this stringbot reads; expected {VERSION}")
+    if version not in VERSIONS:
+        raise BadInput(f"{where}: version {version} is not one this stringbot reads; expected "
+                       f"{' or '.join(map(str, VERSIONS))}")
+    if version == 2:
+        where = f"{where} (version 2)"
     pins = _need(doc, "pins", int, where, "an integer >= 3")
     if pins < 3:
         raise BadInput(f"{where}: field 'pins' is {pins}; expected an integer >= 3")
@@ -199,16 +299,35 @@ def plan_from_json(doc, *, where="plan"):
     connected = doc.get("connected", True)
     if not isinstance(connected, bool):
         raise BadInput(f"{where}: field 'connected' is {connected!r}; expected true or false")
-    sequence = _need(doc, "sequence", list, where, "a list of pin indices")
+    colors, starts, background = [MONO_COLOR], [0], MONO_BACKGROUND
+    if version == 2:
+        if not connected:
+            raise BadInput(f"{where}: field 'connected' is false; expected a connected plan (layers of threads)")
+        layers = _need(doc, "layers", list, where, 'a list of {"color": "#rrggbb", "sequence": [...]}')
+        if not layers:
+            raise BadInput(f"{where}: field 'layers' is empty; expected at least one layer")
+        colors, starts, sequence = [], [], []
+        for k, lay in enumerate(layers):
+            if not isinstance(lay, dict):
+                raise BadInput(f"{where}: layers[{k}] is {type(lay).__name__}; expected "
+                               '{"color": "#rrggbb", "sequence": [...]}')
+            color = lay.get("color")
+            if not isinstance(color, str) or not _HEX.match(color):
+                raise BadInput(f"{where}: layers[{k}].color is {color!r}; expected \"#rrggbb\" (lower-case hex)")
+            seq = _need(lay, "sequence", list, f"{where}: layers[{k}]", "a list of pin indices")
+            _check_sequence(seq, pins, f"{where}: layers[{k}].")
+            colors.append(color)
+            starts.append(len(sequence))
+            sequence += seq
+        background = doc.get("background")
+        if not isinstance(background, str) or not _HEX.match(background):
+            raise BadInput(f"{where}: field 'background' is {background!r}; expected \"#rrggbb\" (lower-case hex)")
+    else:
+        sequence = _need(doc, "sequence", list, where, "a list of pin indices")
     chords = []
     if connected:
-        if len(sequence) < 2:
-            raise BadInput(f"{where}: field 'sequence' has {len(sequence)} pins; expected at least 2")
-        for k, p in enumerate(sequence):
-            if not isinstance(p, int) or isinstance(p, bool) or not 0 <= p < pins:
-                raise BadInput(f"{where}: sequence[{k}] is {p!r}; expected a pin index in 0..{pins - 1}")
-            if k and p == sequence[k - 1]:
-                raise BadInput(f"{where}: sequence[{k}] repeats pin {p}; expected no pin twice in a row")
+        if version == 1:
+            _check_sequence(sequence, pins, f"{where}: ")
     else:
         raw = _need(doc, "chords", list, where, "a list of [i, j] pin pairs")
         for k, c in enumerate(raw):
@@ -234,9 +353,21 @@ def plan_from_json(doc, *, where="plan"):
     source = _need(doc, "source", dict, where, "an object {path, sha256, width, height}")
     stats = _need(doc, "stats", dict, where, "an object")
     known = {"format", "version", "pins", "frame", "pin_xy", "crop", "connected", "sequence",
-             "chords", "method", "parameters", "source", "stats"}  # diameter_mm, thread_mm also stay in extra:
-    # whether the plan recorded them (not just the defaults) is for its readers to tell
+             "chords", "method", "parameters", "source", "stats", "layers", "background"}
+    # diameter_mm, thread_mm also stay in extra: whether the plan recorded them (not just the
+    # defaults) is for its readers to tell
     extra = {k: v for k, v in doc.items() if k not in known}
     return Plan(pins=pins, frame=frame, pin_xy=np.asarray(pin_xy, dtype=float), crop=crop,
                 sequence=list(sequence), method=method, parameters=parameters, source=source,
-                stats=stats, connected=connected, chords=chords, extra=extra, **size)
+                stats=stats, connected=connected, chords=chords, extra=extra, colors=colors,
+                layer_starts=starts, background=background, **size)
+
+
+def _check_sequence(sequence, pins, where):
+    if len(sequence) < 2:
+        raise BadInput(f"{where}field 'sequence' has {len(sequence)} pins; expected at least 2")
+    for k, p in enumerate(sequence):
+        if not isinstance(p, int) or isinstance(p, bool) or not 0 <= p < pins:
+            raise BadInput(f"{where}sequence[{k}] is {p!r}; expected a pin index in 0..{pins - 1}")
+        if k and p == sequence[k - 1]:
+            raise BadInput(f"{where}sequence[{k}] repeats pin {p}; expected no pin twice in a row")

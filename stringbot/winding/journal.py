@@ -19,6 +19,8 @@ then, as the winding goes::
                                           a resume told the firmware where it stands (G10 L20 / G92)
     {"kind": "refused", "error": "...", "t": ...}           a resume attempt that refused
     {"kind": "resume", "from_step": 18, "t": ...}          a --resume (or --from-step) began here
+    {"kind": "layer", "layer": 1, "color": "#b22222", "step": 812, "pin": 17, "t": ...}
+                                                           a colour plan: that layer's thread tied on
     {"kind": "finished", "t": ...}
 
 A step is recorded only once the machine has executed it.  A record is written
@@ -58,6 +60,7 @@ class JournalState:
     done: list = field(default_factory=list)         # executed step indices, in order
     stops: list = field(default_factory=list)        # the stop records
     resumes: list = field(default_factory=list)
+    layers: list = field(default_factory=list)       # the "layer" records (threads tied on), in order
     finished: bool = False
     last_time: float | None = None
     torn: bool = False                                # a torn last line was ignored
@@ -138,6 +141,8 @@ def read_journal(path):
             state.done = [s for s in state.done if s < start]
             state.next_step = start
             state.next_move = rec.get("from_move", 0)
+        elif kind == "layer":
+            state.layers.append(rec)
         elif kind == "finished":
             state.finished = True
         state.last_time = rec.get("t", state.last_time)
@@ -158,6 +163,9 @@ _FIELDS = {
              "pin": (True, "index", "a pin number (a whole number >= 0)")},
     "move": {"step": (True, "step", "a step index 0..{last}"),
              "move": (True, "index", "a move index (a whole number >= 0)")},
+    "layer": {"layer": (True, "index", "a layer index (a whole number >= 0)"),
+              "step": (True, "step", "a step index 0..{last}"),
+              "color": (False, "str", "a colour #rrggbb")},
     "resume": {"from_step": (False, "step_or_end", "a step index 0..{steps}"),
                "from_move": (False, "index", "a move index (a whole number >= 0)")},
     "recover": {"banner": (False, "bool", "true or false"),

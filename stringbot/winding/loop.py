@@ -106,6 +106,7 @@ class Winder:
         self.progress = progress
         self.confirm = confirm
         self.state = WindState.CONNECTING
+        self.threads = None                 # a colour plan's spool changes (winding.layers.Threads)
         self.done = 0                       # steps executed (0..len(steps))
         self.est = step_seconds(steps, machine)
         self._t0 = None
@@ -156,9 +157,13 @@ class Winder:
             self.link.on_move = self._moved
         try:
             if first_moves is not None and first < len(self.steps):
+                self._thread_for(first)
                 self.link.execute_lines(self.steps[first], first_moves, self._executed)
                 first += 1
-            self.link.execute(self.steps[first:], self._executed)
+            runs = [(first, len(self.steps))] if self.threads is None else self.threads.runs(first, len(self.steps))
+            for a, b in runs:               # a colour plan: one run per layer, a spool change between
+                self._thread_for(a)
+                self.link.execute(self.steps[a:b], self._executed)
             if finish:
                 self.state = WindState.FINISHING
                 self.link.finish()
@@ -175,6 +180,13 @@ class Winder:
                           machine_s=sum(self.est[self._first:self.done]),
                           firmware=_firmware_name(self.link), lines_sent=self.link.lines_sent,
                           journal=str(self.journal.path) if self.journal else None)
+
+    def _thread_for(self, step):
+        """A colour plan: the thread of ``step``'s layer tied on (the operator asked at a spool change)."""
+        if self.threads is not None and step < len(self.steps):
+            previous, self.state = self.state, WindState.WAITING
+            self.threads.before(step)
+            self.state = previous
 
     # ---- bookkeeping -------------------------------------------------------------------
     def _executed(self, step):

@@ -65,6 +65,9 @@ def status_lines(job):
         pin = job.steps[nxt].pin if nxt < len(job.steps) else None
         lines.append(f"steps done: {len(state.done)} of {total}; next: step {nxt + 1}"
                      + (f" (pin {pin})" if pin is not None else ""))
+    if not job.plan.is_mono:
+        from .layers import status_line
+        lines.append(status_line(job.plan, state))
     if state.resumes:
         lines.append(f"resumed {len(state.resumes)} time(s)")
     stop = state.last_stop
@@ -124,6 +127,9 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
     try:
         link = open_link(job.url, machine, **(link_options or {}))
         winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
+        if not job.plan.is_mono:    # the journal says whose thread is on: only a new layer's is asked for
+            from .layers import Threads, tied_layer
+            winder.threads = Threads(job, journal, tied=tied_layer(state), confirm=confirm)
         winder.state = winder.state.CONNECTING
         with winder.stopping_on_ctrl_c("while reconnecting"):
             if hasattr(link, "reconnect"):

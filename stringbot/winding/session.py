@@ -166,8 +166,12 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
         winder.start(home=job.machine["controller.homing"]
                      or bool(job.machine.values.get("controller.head_homing")))
         first = job.steps[0]
-        winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
-                   "then go on?")
+        if job.plan.is_mono:
+            winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
+                       "then go on?")
+        else:                       # the thread's colour, and a spool change before each later layer
+            from .layers import Threads
+            winder.threads = Threads(job, journal, confirm=confirm)
         with winder.stopping_on_ctrl_c("while moving to the start"):
             approach(link, job.machine, (first.moves[0].ring_deg, job.machine["head.in_mm"]),
                      tolerance(link, job.machine))
@@ -180,7 +184,7 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
 
 def dry_run_problem(job):
     """After a finished dry run with ``--record``: what the simulated world saw that the plan did
-    not ask for (collisions, or wraps that differ from the plan's sequence), as one line; None
+    not ask for (collisions, crashes, or wraps that differ from the plan's sequence), as one line; None
     when the world wound the plan exactly (or there is no record to check)."""
     if not job.dry_run or job.record is None:
         return None
@@ -189,15 +193,24 @@ def dry_run_problem(job):
         rec = json.loads(job.record.read_text(encoding="utf-8"))
         wraps = [int(w["pin"]) for w in rec["wraps"]]
         collisions = list(rec["collisions"])
+        crashes = list(rec.get("crashes", []))
     except (OSError, ValueError, KeyError, TypeError) as exc:
         return f"the dry run's record {str(job.record)!r} could not be read back ({exc}); " \
                "the winding is unchecked"
     seq = list(job.plan.sequence)
     problems = []
+    if not job.plan.is_mono and wraps == seq:
+        from .layers import layer_problems
+        wrong = layer_problems(job.plan, rec["wraps"])
+        if wrong:
+            problems.append(wrong)
     if collisions:
         first = collisions[0]
         problems.append(f"{len(collisions)} collision(s) of the head with pins (first: "
                         f"{first.get('reason', '?')} at ring {first.get('ring_deg', '?')} deg)")
+    if crashes:
+        problems.append(f"{len(crashes)} crash(es) of the head against the end of its travel "
+                        "(head.travel_min_mm / travel_max_mm)")
     if wraps != seq:
         at = next((i for i, (a, b) in enumerate(zip(wraps, seq)) if a != b), min(len(wraps), len(seq)))
         problems.append(f"the world wrapped {len(wraps)} pins for the plan's {len(seq)}, first "

@@ -1,0 +1,131 @@
+"""Colour plans on the command line: ``plan --colors``, and colour in render, score, estimate, gcode.
+
+The commands themselves live in their own modules; this one holds what they
+do differently for a plan of several thread colours.
+"""
+
+import click
+
+from ..errors import BadInput
+
+#: ``plan`` options that are knobs of the mono planner: refused with ``--colors``.
+MONO_ONLY = ("method", "disconnected", "importance", "gray", "alpha", "style", "beta", "gamma", "T", "epsilon",
+             "iterations", "refine", "fit")
+
+
+def colour_names(colors):
+    from ..planner.palette import color_name
+
+    return ", ".join(f"{color_name(c)} {c}" if color_name(c) != c else c for c in colors)
+
+
+def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, machine, frame, crop, start_pin,
+                    size, lines, no_cache, given, model, force=False):
+    """``stringbot plan IMAGE --colors ...``: the colour planner, its plan and its preview as woven."""
+    import os
+
+    from .._files import check_not_same_file, check_output_path, write_all_atomic
+    from ..planner.colour_build import plan_colour
+    from ..planner.colour_render import plan_layers, woven_rgb
+    from ..planner.image import parse_crop
+    from ..planner.palette import WHITE, parse_background, parse_colors
+    from ..planner.progress import reporting
+    from .planning import _refuse_a_wound_plan
+    from .progress import PlanProgress
+
+    mono = [f"--{name.replace('_', '-')}" if name != "T" else "-T" for name in MONO_ONLY if name in given]
+    if mono:
+        raise BadInput(f"{', '.join(mono)} {'is a knob' if len(mono) == 1 else 'are knobs'} of the one-thread "
+                       "planner; leave them out with --colors (the colour planner has none)")
+    board = parse_background(background) if background is not None else WHITE
+    palette = parse_colors(colors if colors is not None else "black", background=board)
+    preview = preview or os.path.splitext(output)[0] + ".png"
+    check_output_path(output, what="plan")
+    check_output_path(preview, what="preview")
+    for out, what in ((output, "plan"), (preview, "preview")):
+        check_not_same_file(out, image, what=what, source_what="picture")
+    check_not_same_file(preview, output, what="preview", source_what="plan")
+    if not force:
+        _refuse_a_wound_plan(output)
+    if lines != "auto" and lines <= 0:
+        raise BadInput(f"--lines {lines}; expected a positive number or auto")
+    shown = PlanProgress().start()
+    try:
+        with reporting(shown):
+            p = plan_colour(image, colors=palette, background=board, pins=pins, frame=frame,
+                            size=401 if size is None else size,
+                            crop=parse_crop(crop) if crop else None, lines=lines,
+                            start_pin=start_pin, model=model,
+                            cache=not no_cache)
+    finally:
+        shown.close()
+    if machine is not None:
+        p.parameters["machine"] = machine
+    rgb = woven_rgb(plan_layers(p), p.pin_xy, background=p.background, size=1001, width=model.fraction)
+    write_all_atomic([(output, p.to_json(), "plan"), (preview, png_rgb_bytes(rgb), "preview")])  # both or neither
+    s = p.stats
+    per = ", ".join(f"{_short(lay['color'])} {lay['lines']}" for lay in s["layers"])
+    thread = f"{s['thread_diameters']:.1f} diameters"
+    if mach is not None:
+        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    click.echo(f"colour: {p.pins} pins, {len(p.colors)} layers ({per} lines), {s['lines']} lines, thread {thread}, "
+               f"{s['spool_changes']} spool change(s), {s['seconds']:.2f} s -> {output} (preview {preview})")
+    if s["unused"]:
+        click.echo(f"unused: {colour_names(s['unused'])} (no chord of it lowered the colour error)")
+    if mach is not None:
+        for line in estimate_lines(p, mach):
+            click.echo(line)
+
+
+def _short(color):
+    from ..planner.palette import color_name
+
+    return color_name(color)
+
+
+def png_rgb_bytes(rgb):
+    """PNG bytes of an sRGB float image in [0, 1]."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.clip(np.rint(np.asarray(rgb) * 255.0), 0, 255).astype(np.uint8), "RGB").save(
+        buf, format="PNG", compress_level=3)
+    return buf.getvalue()
+
+
+def estimate_lines(plan, machine):
+    """Per-colour thread and machine time, and the total, for ``plan`` on ``machine``."""
+    from ..motion import estimate, format_duration
+    from ..motion.layers import layer_estimates
+
+    est = estimate(plan, machine)
+    out = [f"machine {machine.name}: about {format_duration(est.seconds)} of winding, {est.thread_m:.1f} m of "
+           f"thread, {len(plan.colors) - 1} spool change(s)"]
+    for le in layer_estimates(plan, machine):
+        out.append(f"  layer {le.index + 1} {_short(le.color)} ({le.color}): {le.thread_m:.1f} m of thread, "
+                   f"{format_duration(le.seconds)}, {le.steps} pins, tie on at pin {le.tie_on_pin}")
+    return out
+
+
+def render_colour(plan, output, size):
+    """``stringbot render`` of a colour plan: as woven."""
+    from .._files import write_atomic
+    from ..planner.colour_render import plan_layers, woven_rgb
+
+    write_atomic(output, png_rgb_bytes(woven_rgb(plan_layers(plan), plan.pin_xy, background=plan.background,
+                                                 size=size, width=plan.thread_model().fraction)), what="drawing")
+    click.echo(f"{len(plan.chord_list())} chords in {len(plan.colors)} layers drawn as woven at {size} x {size} "
+               f"-> {output}")
+
+
+def score_colour(plan, plan_path, image):
+    """The colour score of any plan (a mono plan is black thread on white) against IMAGE at 201 px."""
+    from ..planner.colour_render import SCORE_SIZE, colour_score, plan_layers
+    from ..planner.image import read_picture
+
+    pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
+    return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background,
+                        width=plan.thread_model().fraction)

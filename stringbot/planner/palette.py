@@ -1,0 +1,237 @@
+"""Thread colours: names and ``#rrggbb``, the board, and a palette picked from a picture.
+
+A colour is always handled as ``"#rrggbb"`` (lower case, sRGB).  Names come
+from ``threads.toml`` beside this module (common thread shades); a board
+(``--background``) also takes ``white`` (``#ffffff``) and ``black``
+(``#000000``), the paint of a board rather than a thread.
+
+Light mixes linearly: a pixel that a thread covers by ``a`` reflects
+``board * (1 - a) + thread * a`` in *linear* RGB (:func:`to_linear`), which is
+what the eye averages at a distance.  The planner, the renderer and the score
+all mix there and convert back (:func:`to_srgb`) only to show or to measure.
+
+``--colors auto:N`` (:func:`auto_palette`) picks ``N`` threads of the list
+whose mixes with the board come nearest the picture's colours.
+"""
+
+import functools
+import re
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BadInput
+
+__all__ = ["threads", "parse_color", "parse_colors", "parse_background", "to_linear", "to_srgb",
+           "hex_to_rgb", "rgb_to_hex", "auto_palette", "color_name", "BLACK", "WHITE", "MAX_COLORS",
+           "MIN_DELTA_E"]
+
+BLACK, WHITE = "#000000", "#ffffff"
+MAX_COLORS = 8
+#: A thread closer to the board than this (CIE76) would hardly be seen on it.
+MIN_DELTA_E = 8.0
+_BOARDS = {"white": WHITE, "black": BLACK}
+_HEX = re.compile(r"^#?([0-9a-fA-F]{6}|[0-9a-fA-F]{3})$")
+
+
+def _key(name):
+    return re.sub(r"[\s_\-]+", "", str(name).strip().lower())
+
+
+@functools.lru_cache(maxsize=1)
+def threads():
+    """The shipped thread colours: ``{name: "#rrggbb"}`` in file order."""
+    with open(Path(__file__).with_name("threads.toml"), "rb") as f:
+        doc = tomllib.load(f)
+    return {str(k): str(v).lower() for k, v in doc["threads"].items()}
+
+
+def color_name(hex_color):
+    """The thread list's name of ``hex_color`` (the hex itself when it has none)."""
+    for name, value in threads().items():
+        if value == hex_color:
+            return name
+    return {WHITE: "white", BLACK: "black"}.get(hex_color, hex_color)
+
+
+def hex_to_rgb(hex_color):
+    """``"#rrggbb"`` -> sRGB floats in [0, 1], shape (3,)."""
+    h = hex_color.lstrip("#")
+    return np.array([int(h[i:i + 2], 16) for i in (0, 2, 4)], dtype=np.float64) / 255.0
+
+
+def rgb_to_hex(rgb):
+    """sRGB floats in [0, 1] -> ``"#rrggbb"``."""
+    v = np.clip(np.rint(np.asarray(rgb, dtype=np.float64) * 255.0), 0, 255).astype(int)
+    return "#" + "".join(f"{int(x):02x}" for x in v)
+
+
+def to_linear(srgb):
+    """sRGB values in [0, 1] -> linear light (IEC 61966-2-1)."""
+    c = np.asarray(srgb, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def to_srgb(linear):
+    """Linear light in [0, 1] -> sRGB values."""
+    c = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+
+
+def parse_color(text, *, what="--colors", board=False):
+    """A colour name or ``#rrggbb`` / ``#rgb`` -> ``"#rrggbb"``; BadInput naming what is wrong."""
+    raw = str(text).strip()
+    m = _HEX.match(raw)
+    if m and (raw.startswith("#") or not raw.isalpha()):
+        h = m.group(1).lower()
+        if len(h) == 3:
+            h = "".join(c * 2 for c in h)
+        return "#" + h
+    if raw.startswith("#"):
+        raise BadInput(f"{what}: {raw!r} is not a colour; expected #rrggbb (six hex digits), e.g. #b22222")
+    key = _key(raw)
+    if board and key in _BOARDS:
+        return _BOARDS[key]
+    names = {_key(n): v for n, v in threads().items()}
+    if key in names:
+        return names[key]
+    raise BadInput(f"{what}: unknown colour {raw!r}; expected #rrggbb or one of "
+                   f"{', '.join(threads())}")
+
+
+def parse_background(text):
+    """``--background``: ``white``, ``black``, a thread name or ``#rrggbb``."""
+    return parse_color(text, what="--background", board=True)
+
+
+def delta_e(hex_a, hex_b):
+    """CIE76 (Euclidean CIELAB) difference between two colours."""
+    from .colour import lab
+
+    pair = lab(to_linear(np.stack([hex_to_rgb(hex_a), hex_to_rgb(hex_b)])))
+    return float(np.linalg.norm(pair[0] - pair[1]))
+
+
+def parse_colors(text, *, background=WHITE):
+    """``--colors``: ``"black,#b22222,..."`` -> list of ``"#rrggbb"``, or ``"auto:N"`` -> ``("auto", N)``.
+
+    Raises
+    ------
+    BadInput
+        Unknown name, bad hex, an empty list, the same colour twice, more than
+        :data:`MAX_COLORS` threads, ``auto:N`` with N outside 1..MAX_COLORS, a
+        thread the board would hide (CIE76 below :data:`MIN_DELTA_E`).
+    """
+    raw = str(text).strip()
+    if raw.lower().startswith("auto"):
+        m = re.fullmatch(r"auto:(\d+)", raw.lower())
+        if not m:
+            raise BadInput(f"--colors {raw!r}; expected auto:N with N in 1..{MAX_COLORS}, or a list of colours")
+        n = int(m.group(1))
+        if not 1 <= n <= MAX_COLORS:
+            raise BadInput(f"--colors {raw!r}: {n} threads; expected auto:N with N in 1..{MAX_COLORS}")
+        return ("auto", n)
+    parts = [p for p in (x.strip() for x in raw.split(",")) if p]
+    if not parts:
+        raise BadInput(f"--colors {raw!r} names no colour; expected e.g. black,#b22222 or auto:3")
+    if len(parts) > MAX_COLORS:
+        raise BadInput(f"--colors gives {len(parts)} threads; expected at most {MAX_COLORS}")
+    colors = [parse_color(p) for p in parts]
+    for k, (name, c) in enumerate(zip(parts, colors)):
+        if c in colors[:k]:
+            raise BadInput(f"--colors names {name!r} ({c}) twice; expected each thread once")
+        if delta_e(c, background) < MIN_DELTA_E:
+            raise BadInput(f"--colors: {name!r} ({c}) is the colour of the board ({background}), so its "
+                           "thread would not show; expected threads that differ from --background")
+    return colors
+
+
+_SAMPLE = 800
+_GRID = {2: 16, 3: 12, 4: 8, 5: 5, 6: 4}  # divisions of the mixing simplex, by its vertices
+
+
+def _simplex_grid(vertices, steps):
+    """Barycentric grid points of ``vertices`` vertices with ``steps`` divisions: (points, vertices)."""
+    import itertools
+
+    pts = [c for c in itertools.product(range(steps + 1), repeat=vertices - 1) if sum(c) <= steps]
+    g = np.array([[steps - sum(c), *c] for c in pts], dtype=np.float64) / steps
+    return g
+
+
+def _gamut_distance(lab_pixels, vertices_linear, grid):
+    """Mean distance (CIELAB, Euclidean) from each pixel to the nearest mix of the vertices."""
+    from .colour import lab
+
+    from scipy.spatial import cKDTree
+
+    return cKDTree(lab(grid @ vertices_linear)).query(lab_pixels)[0]
+
+
+def auto_palette(rgb, n, *, background=WHITE, mask=None, rng=None):
+    """``n`` thread colours for a picture.
+
+    Forward selection from the thread list.  Every colour a piece can show is
+    a mix of the board and its threads (in linear light; any coverage of any
+    layer order reaches the whole simplex of board and threads), so threads
+    are added one at a time, each the one that brings the picture's pixels (a
+    sample of 800 from the frame) nearest, on average in CIELAB, to the mixes
+    of the board and the threads chosen so far; then each chosen thread is
+    swapped for any other that lowers that distance (two passes).  (Against
+    k-means in CIELAB snapped to the list, see docs/planner.md, "Colour".)
+
+    Parameters
+    ----------
+    rgb : ndarray of float, shape (h, w, 3)
+        The crop, sRGB in [0, 1].
+    n : int
+    background : str
+        The board, ``"#rrggbb"``.
+    mask : ndarray of bool, shape (h, w), optional
+        Pixels that count (inside the frame).
+    rng : None, int or numpy Generator
+        Seeds the pixel sample (None: a fixed seed).
+
+    Returns
+    -------
+    list of str
+        ``n`` distinct ``"#rrggbb"`` from the thread list, none the board's colour.
+    """
+    from .colour import lab
+
+    rng = np.random.default_rng(0 if rng is None else rng)
+    px = np.asarray(rgb, dtype=np.float64).reshape(-1, 3)
+    if mask is not None:
+        px = px[np.asarray(mask).ravel()]
+    px = px[rng.choice(len(px), size=min(_SAMPLE, len(px)), replace=False)]
+    names = list(threads())
+    lin = to_linear(np.array([hex_to_rgb(threads()[k]) for k in names]))
+    board = to_linear(hex_to_rgb(background))
+    visible = np.linalg.norm(lab(lin) - lab(board[None]), axis=1) >= MIN_DELTA_E
+    n = min(int(n), int(visible.sum()))
+    target = lab(to_linear(px))
+
+    def cost(chosen):
+        verts = np.vstack([board[None], lin[chosen]])
+        grid = _simplex_grid(len(verts), _GRID.get(len(verts), 3))
+        return float(_gamut_distance(target, verts, grid).mean())
+
+    chosen = []
+    for _ in range(n):
+        best = min((cost(chosen + [i]), i) for i in range(len(names)) if visible[i] and i not in chosen)
+        chosen.append(best[1])
+    current = cost(chosen)
+    for _ in range(2):               # swap passes: a thread for a better one, until none is
+        improved = False
+        for slot in range(n):
+            for i in range(len(names)):
+                if not visible[i] or i in chosen:
+                    continue
+                trial = chosen[:slot] + [i] + chosen[slot + 1:]
+                c = cost(trial)
+                if c < current - 1e-9:
+                    chosen, current, improved = trial, c, True
+        if not improved:
+            break
+    return [threads()[names[i]] for i in chosen]
