@@ -12,8 +12,10 @@ bus a ``fail(message) -> Exception`` that adds the step and the pin.
 """
 
 import logging
+import termios
 
 import dynamixel_sdk as sdk
+import serial
 
 from firmware_protocol import dynamixel as dx
 
@@ -33,6 +35,18 @@ _HINTS = {sdk.COMM_RX_TIMEOUT: "it does not answer: check its power, cable, id a
           sdk.COMM_PORT_BUSY: "the port is busy"}
 
 
+#: What the SDK's port raises when the adapter or its cable is gone (pyserial, the OS, termios).
+PORT_ERRORS = (serial.SerialException, OSError, termios.error)
+#: Extra milliseconds a retried exchange waits for its answer, beyond the SDK's own timeout
+#: (about 35 ms): a late answer (a loaded host, a busy adapter) is taken, not given up on.
+RETRY_SLACK_MS = (0.0, 30.0, 120.0, 400.0)
+
+
+def _first_line(exc):
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return text
+
+
 def comm_name(result):
     """``-3001`` -> ``'COMM_RX_TIMEOUT'``."""
     return _COMM.get(result, f"COMM result {result}")
@@ -45,7 +59,17 @@ def poll_field(data, name):
     return dx.from_bytes(data[start:start + f.size], f.signed)
 
 
-class _UrlPortHandler(sdk.PortHandler):
+class _PatientPortHandler(sdk.PortHandler):
+    """The SDK's port handler with ``slack_ms`` added to every packet timeout (see :data:`RETRY_SLACK_MS`)."""
+
+    slack_ms = 0.0
+
+    def setPacketTimeout(self, packet_length):
+        super().setPacketTimeout(packet_length)
+        self.packet_timeout += self.slack_ms
+
+
+class _UrlPortHandler(_PatientPortHandler):
     """The SDK's port handler, opening URLs (``sim://``, ``socket://``) through :func:`open_port`."""
 
     def setupPort(self, cflag_baud):
@@ -75,11 +99,12 @@ class ServoBus:
 
     def __init__(self, url, roles, fail, *, protocol=2.0, retries=3):
         self.url, self.roles, self.fail, self.retries = url, dict(roles), fail, retries
-        self.port = (_UrlPortHandler if "://" in url else sdk.PortHandler)(url)
+        self.port = (_UrlPortHandler if "://" in url else _PatientPortHandler)(url)
         self.ph = sdk.PacketHandler(protocol)
         self.polls = 0          # sync reads sent
         self.packets = 0        # other instruction packets sent
         self.retried = 0        # exchanges repeated after a COMM_* failure
+        self.lost = None        # why the port is gone (a pulled cable): every exchange then fails at once
 
     def name(self, servo_id):
         return f"{self.roles.get(servo_id, 'unknown')} servo (id {servo_id})"
@@ -87,6 +112,7 @@ class ServoBus:
     # ---- port -------------------------------------------------------------------------------
     def open(self, baud):
         """Open the port; False when the SDK does not know ``baud``.  Port errors propagate."""
+        self.lost = None
         if not self.port.openPort():
             return False
         if not self.port.setBaudRate(baud):
@@ -100,19 +126,36 @@ class ServoBus:
         if settle_s:
             time.sleep(settle_s)
         self.port.is_using = False
-        if self.port.ser is not None:
-            self.port.clearPort()
+        if self.port.ser is not None and self.lost is None:
+            self._call(None, "clearing the input", self.port.clearPort)
 
     def close(self):
         if self.port.ser is not None and self.port.is_open:
             self.port.closePort()
 
     # ---- exchanges ----------------------------------------------------------------------------
+    def _call(self, servo_id, what, call, *args, attempt=0):
+        """One SDK call; the port raising (a pulled cable, a dead adapter) becomes one failure
+        naming the operation, and every later exchange fails at once with the same reason."""
+        if self.lost is not None:
+            raise self.fail(self.lost)
+        self.port.slack_ms = RETRY_SLACK_MS[min(attempt, len(RETRY_SLACK_MS) - 1)]
+        try:
+            return call(*args)
+        except PORT_ERRORS as exc:
+            who = f"the {self.name(servo_id)}, " if servo_id is not None else ""
+            self.lost = (f"lost the port {self.url} at {who}{what} ({_first_line(exc)}): check the servo "
+                         "adapter, its USB cable and the servos' power")
+            log.debug("port error", exc_info=True)
+            raise self.fail(self.lost) from None
+        finally:
+            self.port.slack_ms = 0.0
+
     def _retry(self, servo_id, what, call, *args):
         """Run an SDK call whose result is ``out[-2]``; retry COMM failures; return its output."""
         for attempt in range(self.retries + 1):
             self.port.is_using = False        # an interrupted exchange must not leave the port "busy"
-            out = call(*args)
+            out = self._call(servo_id, what, call, *args, attempt=attempt)
             self.packets += 1
             result = out[-2] if isinstance(out, tuple) else out
             if result == sdk.COMM_SUCCESS:
@@ -206,7 +249,7 @@ class ServoBus:
             group.addParam(servo_id)
         for attempt in range(self.retries + 1):
             self.port.is_using = False
-            result = group.txRxPacket()
+            result = self._call(ids[0], "polling the positions", group.txRxPacket, attempt=attempt)
             self.polls += 1
             if result == sdk.COMM_SUCCESS:
                 return {servo_id: bytes(group.data_dict[servo_id]) for servo_id in ids}
