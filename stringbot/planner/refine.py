@@ -33,7 +33,7 @@ __all__ = ["refine_sequence"]
 def _chord_score(canvas, pin_lines, a):
     """Mean residual of every chord from pin ``a``: ``(others, scores)``."""
     others, pix, starts, counts = pin_lines.get_with_counts(a)
-    return others, np.add.reduceat(canvas.slope().take(pix), starts) / counts
+    return others, np.add.reduceat(canvas.slope().take(pix), starts) / counts * canvas.gain_row(a, others)
 
 
 def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):
