@@ -106,6 +106,7 @@ class Canvas:
         self.t = np.asarray(target, dtype=np.float64).ravel()
         self.w = np.asarray(weights, dtype=np.float64).ravel()
         self.S = np.zeros_like(self.t)
+        self.D = np.zeros_like(self.t)  # tanh(S), kept in step with S
         self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
         self.width = float(width_px)
         self._fp = {}
@@ -138,7 +139,7 @@ class Canvas:
 
     def error(self):
         """``E = sum w (t - D)^2``."""
-        return float(np.sum(self.w * (self.t - np.tanh(self.S)) ** 2))
+        return float(np.sum(self.w * (self.t - self.D) ** 2))
 
     def gain(self, a, b, copies=0):
         """Share of a thread's coverage the next copy of chord ``(a, b)`` adds (``copies`` more drawn first)."""
@@ -184,16 +185,21 @@ class Canvas:
             dS = sign * cov
         else:
             pix, dS = self._union(parts)
-        S0 = self.S[pix]
-        S1 = np.maximum(S0 + dS, 0.0)
+        S1 = np.maximum(self.S[pix] + dS, 0.0)
         t, w = self.t[pix], self.w[pix]
-        return float(np.sum(w * ((t - np.tanh(S1)) ** 2 - (t - np.tanh(S0)) ** 2)))
+        return float(np.sum(w * ((t - np.tanh(S1)) ** 2 - (t - self.D[pix]) ** 2)))
 
     def apply(self, chords_out=(), chords_in=()):
-        """Remove ``chords_out`` and add ``chords_in``; update the slope on the pixels they touch."""
+        """Remove ``chords_out`` and add ``chords_in``; update the slope on the pixels they touch.
+
+        Returns
+        -------
+        float
+            The exact change of ``E`` (as :meth:`delta` would have said).
+        """
         parts = self._changes(chords_out, chords_in)
         if not parts:
-            return
+            return 0.0
         for chords, sign in ((chords_out, -1), (chords_in, 1)):
             for a, b in chords:
                 self.uses[a, b] += sign
@@ -201,17 +207,21 @@ class Canvas:
                     self.uses[b, a] += sign
         if len(parts) == 1:
             (pix, cov), sign = parts[0]
-            self.S[pix] += sign * cov
+            dS = sign * cov
         else:
             pix, dS = self._union(parts)
-            self.S[pix] += dS
-        S = np.maximum(self.S[pix], 0.0)
+        S = np.maximum(self.S[pix] + dS, 0.0)
         self.S[pix] = S
         d = np.tanh(S)
+        d0 = self.D[pix]
+        self.D[pix] = d
+        t, w = self.t[pix], self.w[pix]
         slope = 1.0 - d * d  # dD/dS
         # E's change for coverage c: -2 w (t - D) D' c + w D'^2 c^2; per unit of coverage of a thread
         # whose own c^2 / c is 2 kappa: 2 w D' ((t - D) - kappa D')
-        self.g[pix] = self.w[pix] * slope * ((self.t[pix] - d) - self.kappa * slope)
+        r = t - d
+        self.g[pix] = w * slope * (r - self.kappa * slope)
+        return float(np.sum(w * (r * r - (t - d0) ** 2)))
 
     def slope(self):
         """The slope field ``w (t - D) dD/dS``, flat float32 (a view: do not modify)."""
@@ -259,9 +269,7 @@ def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_line
         if not np.isfinite(score[k]):
             break
         nxt = int(others[k])
-        if auto:
-            err += canvas.delta(chords_in=[(cur, nxt)])
-        canvas.apply(chords_in=[(cur, nxt)])
+        err += canvas.apply(chords_in=[(cur, nxt)])
         seq.append(nxt)
         cur = nxt
         if len(seq) % 200 == 0:
