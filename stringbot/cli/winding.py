@@ -5,7 +5,6 @@ import sys
 import click
 
 from ..errors import BadInput, Interrupted, MachineFailure
-from ..links.settings_check import SettingsDisagree
 from . import cli
 from .progress import fmt_s as _fmt_s
 
@@ -71,6 +70,8 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     again = _resume_command(plan, machine_name, port, journal)
     ask = _Asking()
 
+    # the settings check is imported here, not at the top: `stringbot plan` does not need it
+    from ..links.settings_check import SettingsDisagree
     from .progress import WindProgress
 
     progress = WindProgress(every=progress_every).start()
