@@ -69,7 +69,7 @@ def machines_check_cmd(name, port, apply_fixes_, yes):
         for line in report_lines(report):
             click.echo(line)
         if report.agrees:
-            click.echo(f"all {len(report.rows)} settings agree with the machine file")
+            click.echo(_agree_line(report))
             return
         fixes = report.fixes
         _explain(report, fixes)
@@ -95,9 +95,20 @@ def machines_check_cmd(name, port, apply_fixes_, yes):
         if not after.agrees:
             _explain(after, after.fixes)
             _fail(f"{len(after.disagreements)} setting(s) still disagree after the fixes")
-        click.echo(f"all {len(after.rows)} settings agree with the machine file")
+        click.echo(_agree_line(after))
     finally:
         link.close()
+
+
+def _agree_line(report):
+    """"all N settings agree", naming what was not checked (the machine file does not say)."""
+    from ..links.settings_rules import Verdict
+
+    unchecked = [r.setting for r in report.rows if r.verdict is Verdict.UNCHECKED]
+    if not unchecked:
+        return f"all {len(report.rows)} settings agree with the machine file"
+    return (f"{len(report.rows) - len(unchecked)} of {len(report.rows)} settings agree with the machine file; "
+            f"not checked (the machine file does not say): {', '.join(unchecked)}")
 
 
 def _explain(report, fixes):
