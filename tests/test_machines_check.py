@@ -196,3 +196,16 @@ def test_dynamixel_rules():
     assert "ticks per turn" in wrong.setting and wrong.fix == () and "ticks_per_turn = 4096" in wrong.hint
     notes = [r for r in report.rows if r.verdict is Verdict.NOTE]
     assert notes and "set ring.feed_deg_per_min" in notes[0].hint
+
+
+def test_apply_without_a_terminal_is_one_line_and_sends_nothing(tmp_path):
+    import subprocess
+    import sys
+    port = url(tmp_path, "grbl-ring", "$100=40")
+    p = subprocess.run([sys.executable, "-m", "stringbot.cli", "machines", "check", "grbl-ring", "--port", port,
+                        "--apply"], stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2
+    assert p.stderr.splitlines()[-1] == (
+        "stringbot: error: --apply asks before sending, but standard input ended (not a terminal); "
+        "nothing was sent: run in a terminal, or add --yes")
+    assert "Traceback" not in p.stderr

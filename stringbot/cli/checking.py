@@ -84,8 +84,7 @@ def machines_check_cmd(name, port, apply_fixes_, yes):
         if not fixes:
             _fail("nothing to send: what disagrees is fixed in the machine file or the build (see above)")
         click.echo(f"{PERSISTENCE[report.kind]}.")
-        if not yes and not click.confirm(f"Send these {len(fixes)} line(s) to the machine?", default=False,
-                                         err=True):
+        if not yes and not _confirm(f"Send these {len(fixes)} line(s) to the machine?"):
             _fail("nothing was sent")
         apply_fixes(link, machine, fixes)
         after = check_link(link, machine, fresh=True)
@@ -98,6 +97,20 @@ def machines_check_cmd(name, port, apply_fixes_, yes):
         click.echo(_agree_line(after))
     finally:
         link.close()
+
+
+def _confirm(question):
+    """The operator's yes; standard input that ended (no terminal) is bad input, not exit 130."""
+    from ..errors import BadInput
+
+    try:
+        return click.confirm(question, default=False, err=True)
+    except click.Abort as exc:
+        if isinstance(exc.__context__, EOFError):
+            click.echo("", err=True)
+            raise BadInput("--apply asks before sending, but standard input ended (not a terminal); "
+                           "nothing was sent: run in a terminal, or add --yes") from None
+        raise
 
 
 def _agree_line(report):
