@@ -278,6 +278,7 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
                 if i not in physical:
                     position[i] = 0.0
         self.motion.set_position(position)
+        self.homed.update(axes)
         return 0
 
     def _G90(self, p):
@@ -375,6 +376,7 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
         self.scale = 1.0
         self.relative = False
         self.shift = [0.0] * len(self.axes)
+        self.homed = set()                      # axes homed since this start (software endstops)
         self.state = MarlinState.READY
         for line in (mc.START, f"echo:Marlin {mc.VERSION}",
                      "echo: Last Updated: 2023-07-11 | Author: (stringbot simulator)",
