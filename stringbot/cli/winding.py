@@ -172,7 +172,7 @@ def _summary(result, machine):
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
 @click.option("--faults", default=None, help="Faults to inject, a comma list: kind@N (as line N arrives), "
                                              "kind@N+F (F of line N's move done), kind@t=SECONDS, kind@N..M; "
-                                             "kinds reset, reboot, power, disconnect, garble, drop-ok, error, "
+                                             "kinds reset, reboot, power, disconnect, freeze, garble, drop-ok, error, "
                                              "ignore (docs/simulator.md).")
 @click.option("--set", "settings", multiple=True, metavar="SETTING",
               help="Start the firmware with this setting instead of the machine file's (repeatable): "
