@@ -391,7 +391,7 @@ def run_case(case, plan_path, seq, workdir, *, timeout=120.0, max_runs=10, seed=
                 return {**result, "outcome": "exact" if ok else "silent", "why": why, "runs": run,
                         "stops": stops, "head_out": head_out}
             stops += 1
-            head_out = head_out or rec.get("head_side") == "out"
+            head_out = head_out or rec.get("head_side") in ("out", "on")     # OUT, or among the pins
             msg = _error_line(err)
             if "Traceback" in err or rc not in (1, 2, 130):
                 return {**result, "outcome": "failed", "why": f"exit {rc}: {msg[-300:]}", "runs": run,
@@ -543,7 +543,7 @@ def table_lines(results):
         rows[(r["label"], r["kind"])][r["outcome"]] += 1
         rows[(r["label"], r["kind"])]["head out"] += bool(r.get("head_out"))
     out = [f"{'machine':13s} {'fault':15s} {'cases':>5s} " + " ".join(f"{o:>7s}" for o in OUTCOMES)
-           + "  head OUT at a stop"]
+           + "  head not IN at a stop"]
     totals = defaultdict(Counter)
     for (label, kind), c in rows.items():
         n = sum(c[o] for o in OUTCOMES)

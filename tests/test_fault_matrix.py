@@ -90,10 +90,11 @@ def test_the_simulator_killed_stops_the_host_with_the_resume_and_no_pin_it_did_n
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(3600)
 def test_a_reduced_matrix_is_never_silently_wrong_and_never_hangs(tmp_path):
     """Every machine, every kind, two points each (one with the head OUT), a 20-line plan."""
     kinds = (fm.LINE_KINDS + [f"{k}+0.5" for k in fm.MID_KINDS] + [f"uno-{k}" for k in fm.UNO_KINDS]
-             + ["dynamixel", "host-kill", "sim-kill"])
+             + ["dynamixel", "host-kill", "host-int", "sim-kill"])
     cases, plans = fm.build_cases(tmp_path, fm.GCODE + ["dynamixel-ring"], kinds, 2, 3, 11,
                                   lambda name: fm.make_plan(tmp_path, name, 20))
     results = fm.run_matrix(cases, plans, tmp_path, workers=2, timeout=120.0)

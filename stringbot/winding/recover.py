@@ -207,16 +207,13 @@ class GcodeRecovery:
     def lost(self, stop, moved_before):
         sit, machine = self.sit, self.machine
         measured = stop.get("position") if stop else None
-        if machine["controller.homing"] and not moved_before:
-            # switches first: homing restores the firmware's own machine coordinates, which a
-            # declaration cannot (Marlin's software endstops are native: after a reboot, G92 at
-            # the measured head IN shifts them so that the head can no longer go OUT)
-            return self.rehome()
         if _valid(measured) and not moved_before:
             here = self.declare(measured[0], measured[1], "measured at rest when the winding stopped")
             found = self.kept(here, True)
             found.how = "the position measured when the winding stopped (the firmware had restarted)"
             return found
+        if machine["controller.homing"] and not moved_before:
+            return self.rehome()
         if self.from_step is not None:
             return self.guided("the firmware lost its position; --from-step needs a known one")
         if moved_before:
@@ -244,8 +241,8 @@ class GcodeRecovery:
         if side is None and op.choose is not None:
             choices = ["in", "out"] + (["guide"] if op.jog is not None else [])
             side = op.choose(f"The firmware lost its position while {sit.doing()}; the journal puts the "
-                             f"{where_ring}. Look at the thread head: is it fully IN (at its inner position, the eyelet "
-                             f"inside the pin circle) or fully OUT (at its outer position)?"
+                             f"{where_ring}. Look at the thread head: is it fully IN (at its inner "
+                             "position, the eyelet inside the pin circle) or fully OUT (at its outer position)?"
                              + (" If it stopped part way, answer guide: a head declared IN or OUT where it "
                                 "is not would offset every later head move (guide: jog to a reference)"
                                 if op.jog is not None else ""), choices)
