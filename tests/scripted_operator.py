@@ -47,9 +47,22 @@ class ScriptedOperator:
         return float(v["ring_deg"]), float(v["head_mm"])
 
     def side(self):
+        """"in" or "out" as the eyelet looks: nearer IN or OUT (for moving it)."""
         m = self.m
         _, head = self._seen()
         return "out" if abs(head - m["head.out_mm"]) < abs(head - m["head.in_mm"]) else "in"
+
+    def clear_side(self):
+        """The side a person would *state*: "in"/"out" only when the eyelet is clearly there
+        (within a quarter of the stroke of IN or OUT); None when it stands among the pins."""
+        m = self.m
+        _, head = self._seen()
+        quarter = abs(m["head.out_mm"] - m["head.in_mm"]) / 4
+        if abs(head - m["head.in_mm"]) <= quarter:
+            return "in"
+        if abs(head - m["head.out_mm"]) <= quarter:
+            return "out"
+        return None
 
     def _angle(self, units, ring):
         """The physical ring angle nearest ``ring`` that puts ``units`` (pin units) at the station."""
@@ -74,7 +87,8 @@ class ScriptedOperator:
     def choose(self, question, choices):
         self.asked.append(question)
         if "in" in choices and "out" in choices:
-            return self.side()
+            side = self.clear_side()
+            return side if side is not None or "guide" not in choices else "guide"
         # a servo turn: which of these pins faces the head?
         return str(self.facing()) if str(self.facing()) in choices else choices[0]
 
@@ -86,7 +100,7 @@ class ScriptedOperator:
         if declared:
             r = float(declared.group(1))
             off = abs((ring - r + 180.0) % 360.0 - 180.0)
-            return off < m.pitch_deg / 4 and self.side() == declared.group(2).lower()
+            return off < m.pitch_deg / 4 and self.clear_side() == declared.group(2).lower()
         faces = re.search(r"Pin (\d+) faces the head station and the head is IN", question)
         if faces:
             return self.facing() == int(faces.group(1)) and self.side() == "in"

@@ -149,6 +149,8 @@ def test_marlin_unsaved_settings_are_lost_at_reset():
 def test_marlin_software_endstops_clamp_the_ring_until_turned_off():
     emu, world, _ = marlin("M201 A3000", "M203 A1000")
     assert lines(emu, b"G0 A8000 F60000\nM400\n") == ["ok", "ok"]
+    assert world.ring_deg == pytest.approx(8000.0)          # not homed: Marlin has no limits to trust
+    assert lines(emu, b"G28\nG0 A8000 F60000\nM400\n") == ["ok", "ok", "ok"]
     assert world.ring_deg == pytest.approx(7200.0, abs=0.5 / 44.4444)  # stopped at the endstop
     assert lines(emu, b"M211 S0\nG0 A8000\nM400\n") == ["ok", "ok", "ok"]
     assert world.ring_deg == pytest.approx(8000.0)

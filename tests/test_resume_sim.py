@@ -53,10 +53,11 @@ def resume_as_an_operator(job, fast, tried):
     except BadInput as exc:
         if "--head-side" not in str(exc) and "terminal" not in str(exc):
             raise
-        if "--head-side" in str(exc) and "guided" not in str(exc).split("--head-side")[0]:
+        side = operator_for(job).clear_side()          # stated only when clearly IN or OUT
+        if side is not None and "--head-side" in str(exc) and "guided" not in str(exc).split("--head-side")[0]:
             tried.append("head-side")
             try:
-                return resume_plan(job, confirm=None, head_side=head_side_from_world(job.url), link_options=fast)
+                return resume_plan(job, confirm=None, head_side=side, link_options=fast)
             except BadInput as again:
                 if "terminal" not in str(again):
                     raise
@@ -95,12 +96,15 @@ def check_world(record, plan):
 POINTS = {"grbl-ring": [6, 9, 12, 15, 18, 21, 27, 41],
           "marlin-ring": [8, 11, 14, 17, 20, 27],
           "grblhal-ring": [20, 23, 29]}
-KINDS = ["disconnect", "reset", "power", "garble", "drop-ok", "error"]
+KINDS = ["disconnect", "reset", "power", "garble", "drop-ok", "error", "reboot", "ignore"]
 CASES = [(name, kind, n) for name, points in POINTS.items() for kind in KINDS for n in points
          if name != "grblhal-ring" or kind in ("reset", "power", "disconnect")]
+# faults that strike a moving machine: halfway through the move the line commands
+MID_MOVE = [(name, f"{kind}", f"{n}+0.5") for name, points in POINTS.items() for n in points[1::2]
+            for kind in ("reset", "reboot", "power")]
 
 
-@pytest.mark.parametrize("name, kind, n", CASES)
+@pytest.mark.parametrize("name, kind, n", CASES + MID_MOVE)
 def test_fault_then_resume_winds_the_plan_exactly(tmp_path, name, kind, n):
     job, plan, record = make_job(tmp_path, name, f"{kind}@{n}")
     wind_to_the_end(job, record)

@@ -139,3 +139,35 @@ def test_a_head_out_away_from_a_gap_is_refused_before_any_move(tmp_path):
     with pytest.raises(MachineFailure, match="head OUT .* would hit a pin"):
         approach(link, machine, (0.0, 0.0), tolerance(link))
     assert world.moves == 0
+
+
+# the lines of the first steps each machine's firmware receives (after identification, the
+# settings and the preamble): points on a move line and on its sync line
+IGNORED = {"grbl-ring": [20, 21, 23, 26], "grblhal-ring": [22, 23, 25, 28], "marlin-ring": [16, 17, 19, 22]}
+
+
+@pytest.mark.parametrize("name, n", [(name, n) for name, ns in IGNORED.items() for n in ns])
+def test_a_firmware_that_acknowledges_without_executing_is_caught(tmp_path, name, n):
+    """``ignore@N`` (the simulator answers ``ok`` to line N and does nothing): the winding stops
+    within the step (exit 1) -- or, where the ignored line was a sync whose move still ran,
+    goes on having seen the machine arrive -- and the journal holds only what the world did."""
+    import json
+    from stringbot.cli import main
+    from stringbot.planner import write_plan
+    plan = small_plan(n=6, seed=8)
+    write_plan(plan, tmp_path / "p.json")
+    record = tmp_path / "rec.json"
+    with pytest.raises(SystemExit) as info:
+        main(["wind", str(tmp_path / "p.json"), "--machine", name, "--yes", "--record", str(record),
+              "--faults", f"ignore@{n}", "--journal", str(tmp_path / "j")])
+    rec = json.loads(record.read_text())
+    wraps = [w["pin"] for w in rec["wraps"]]
+    state = read_journal(tmp_path / "j")
+    assert rec["collisions"] == [] and not rec.get("crashes")
+    journaled = [plan.sequence[i] for i in state.done]
+    if info.value.code == 0:
+        assert wraps == plan.sequence and journaled == plan.sequence
+    else:
+        assert info.value.code == 1
+        assert journaled == wraps                  # nothing journaled that the world did not do
+        assert state.last_stop["step"] == len(state.done) + 1      # stopped in the very next step

@@ -164,13 +164,16 @@ class MarlinSettingsMixin:
         return 0
 
     def _soft_limited(self, target):
-        """A move's target clamped to the software endstops when they are on (native positions)."""
+        """A move's target clamped to the software endstops when they are on (native positions),
+        on the axes homed since the firmware started (Marlin's ``apply_motion_limits`` checks
+        ``axis_was_homed``: an axis never homed has no limits to trust)."""
         s = self.settings
         if not s.soft_endstops:
             return target
         out = list(target)
+        homed = getattr(self, "homed", set())
         for i, a in enumerate(self.axes):
             lo, hi = s.soft_min.get(a), s.soft_max.get(a)
-            if lo is not None and hi is not None:
+            if lo is not None and hi is not None and a in homed:
                 out[i] = min(max(out[i], lo), hi)
         return out

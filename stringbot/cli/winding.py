@@ -33,7 +33,8 @@ def _resume_command(plan, machine_name, port, journal):
 @click.option("--from-step", type=click.IntRange(min=1), default=None,
               help="Restart from step N (numbered from 1) after fixing something by hand.")
 @click.option("--head-side", type=click.Choice(["in", "out"]), default=None,
-              help="On resume, where the thread head is when the journal cannot know.")
+              help="On resume, where the thread head is when the journal cannot know: fully IN or fully "
+                   "OUT (part way: resume without --yes to be guided).")
 @click.option("--status", "show_status", is_flag=True,
               help="Show the journal's state and exit (without --port: the real winding's journal if any).")
 @click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")

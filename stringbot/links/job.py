@@ -70,6 +70,7 @@ class GcodeMachineLink(GcodeRecovery):
         self.rest = None                # (ring, head) measured at rest, nothing sent since
         self.checks = 0                 # positions compared with the plan (for figures)
         self._offset = None             # GRBL: G54's offset (machine -> job coordinates)
+        self._count_shift = None        # Marlin: job position less the step counts (at rest)
         self._tolerance = None
 
     # the interface of stringbot.winding ------------------------------------------------
@@ -119,7 +120,7 @@ class GcodeMachineLink(GcodeRecovery):
         home_lines = self.dialect.home() if home else []
         self.proto.prepare(home=bool(home_lines), preamble=self.dialect.preamble(),
                            home_lines=home_lines)
-        self._offset = None
+        self._offset = self._count_shift = None
 
     def execute(self, steps, on_executed=None):
         """Run ``steps``: move by move (``sync="move"``) or streamed with a sync per step."""
@@ -215,7 +216,7 @@ class GcodeMachineLink(GcodeRecovery):
         """
         proto = self.proto
         if not isinstance(proto, GrblLink):
-            return self._marlin_position(proto.status())
+            return self._marlin_at_rest(where, timeout)
         deadline = time.monotonic() + (timeout or proto.motion_timeout)
         while True:
             st = proto.status()
@@ -248,6 +249,41 @@ class GcodeMachineLink(GcodeRecovery):
             self._offset = self._work_offset()
         offset = self._offset or (0.0,) * len(st.mpos)
         return self._pick(tuple(p - o for p, o in zip(st.mpos, offset)))
+
+    def _marlin_at_rest(self, where, timeout=None):
+        """Marlin's ``M114`` reports the *planned* position; its ``Count`` the steppers' own.  Once
+        the two agree (the step counts calibrated against the position at the first read after
+        each declaration or homing, at rest) the machine has arrived; while they differ it is still moving (an ``M400``
+        answered early) and is asked again.  Counts that stop changing without agreeing (steps
+        per unit unlike the machine file's) end the wait with a warning."""
+        proto = self.proto
+        m = self.machine
+        steps = (m.values.get("ring.steps_per_deg"), m.values.get("head.steps_per_mm"))
+        axes = (m["controller.ring_axis"], m["controller.head_axis"])
+        deadline = time.monotonic() + (timeout or proto.motion_timeout)
+        last = None
+        while True:
+            here = self._marlin_position(proto.status())
+            counts = proto.last_counts or {}
+            if here is None or not all(steps) or not all(a in counts for a in axes):
+                return here
+            actual = tuple(counts[a] / k for a, k in zip(axes, steps))
+            if self._count_shift is None:
+                self._count_shift = tuple(h - a for h, a in zip(here, actual))
+                return here
+            moved = tuple(a + sh for a, sh in zip(actual, self._count_shift))
+            tol = self.position_tolerance
+            if all(abs(x - y) <= t for x, y, t in zip(moved, here, tol)):
+                return here
+            if last == actual:
+                log.warning("Marlin's step counts (%s) do not match its position %s: are its steps per "
+                            "unit (M92) the machine file's?", actual, here)
+                self._count_shift = None
+                return here
+            if time.monotonic() > deadline:
+                raise proto.fail("the machine is still moving after its move was answered", where or proto.where)
+            last = actual
+            proto.readline(0.01)                    # let time pass
 
     def _marlin_position(self, st):
         axes = st.fields.get("axes") or {}

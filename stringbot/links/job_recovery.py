@@ -79,7 +79,7 @@ class GcodeRecovery:
         else:
             st = proto.status()
             seen.mpos = list(st.mpos) if st.mpos is not None else None
-        self._offset = None
+        self._offset = self._count_shift = None
         self.here = self.rest = None
         return seen
 
@@ -130,7 +130,7 @@ class GcodeRecovery:
         Returns the position the firmware then reports (job coordinates).
         """
         self.proto.command(self.dialect.set_position(ring_deg, head_mm))
-        self._offset = None
+        self._offset = self._count_shift = None
         self.here = (ring_deg, head_mm)
         back = self.position()
         tol = self.position_tolerance
@@ -145,7 +145,7 @@ class GcodeRecovery:
         """Home (``$H`` / ``G28``), or only ``axes`` ("head", "ring") where the firmware can."""
         timeout = getattr(self.proto, "motion_timeout", 600.0)
         self.proto.command(self.dialect.home_command(axes), timeout=timeout)
-        self._offset = None
+        self._offset = self._count_shift = None
         self.here = self.rest = None
 
     def jog(self, *, ring=0.0, head=0.0):

@@ -67,6 +67,7 @@ class MarlinLink(LineLink):
         self.line_number = 0
         self.resends = 0
         self.last_position = None
+        self.last_counts = None       # M114's "Count": the steppers' own step counts
         self._history = {}
         self._swallow = 0
         self._awaiting = None
@@ -283,7 +284,9 @@ class MarlinLink(LineLink):
                 raise self.fail("the firmware reset itself mid-job (it printed its start banner); "
                                 "its position may be lost", where)
             if line.startswith("X:") and _POS.search(line):
-                self.last_position = {k: float(v) for k, v in _POS.findall(line.split("Count")[0])}
+                logical, _, counts = line.partition("Count")
+                self.last_position = {k: float(v) for k, v in _POS.findall(logical)}
+                self.last_counts = {k: float(v) for k, v in _POS.findall(counts)} or None
                 if probe is not None:
                     reported = True             # the probe ran: line n is done
                 continue
