@@ -85,8 +85,9 @@ def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):
             continue
         a, p, c = seq[i], seq[k], seq[j]
         old = [(a, p), (p, c)]
-        canvas.apply(chords_out=old)  # lifted, so that the scores see the picture without them
-        base = canvas.delta(chords_in=old)  # the error change of putting them back: the bar to beat
+        # lifted, so that the scores see the picture without them; putting them back would change the
+        # error by minus what lifting did: the bar to beat
+        base = -canvas.apply(chords_out=old)
         best, best_pins = base, None
         oa, sa = _chord_score(canvas, pin_lines, a)
         oc, sc = _chord_score(canvas, pin_lines, c)
