@@ -49,7 +49,7 @@ from .thread import SegmentStamp
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Canvas", "residual_sequence", "repeat_gains", "PATIENCE"]
+__all__ = ["Canvas", "residual_sequence", "best_start", "repeat_gains", "PATIENCE"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -228,7 +228,20 @@ class Canvas:
         return self.g
 
 
-def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_lines=None, patience=PATIENCE):
+def best_start(canvas, space, pin_lines):
+    """The pin to start from: an end of the chord of highest score on the canvas (the lower pin on a tie)."""
+    g = canvas.slope()
+    best, pin = -np.inf, 0
+    for a in range(space.pins):
+        others, pix, starts, counts = pin_lines.get_with_counts(a)
+        if len(others):
+            top = float((np.add.reduceat(g.take(pix), starts) / counts).max())
+            if top > best:
+                best, pin = top, a
+    return pin
+
+
+def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_lines=None, patience=PATIENCE):
     """Choose a pin sequence by the darkness residual (see the module notes).
 
     Parameters
@@ -239,7 +252,9 @@ def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_line
     lines : int or "auto"
         Chords to draw; ``"auto"``: until ``patience`` chords in a row have not
         brought the error below its lowest, then back to where it was lowest.
-    start_pin, min_loop : int
+    start_pin : int or None
+        None: :func:`best_start`.
+    min_loop : int
     pin_lines : _PinLines, optional
         Shared per-pin line points (built here when not given).
     patience : int
@@ -251,6 +266,8 @@ def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_line
     auto = lines == "auto"
     limit = MAX_AUTO if auto else int(lines)
     pins = pin_lines or _PinLines(space, canvas.size, nearest=True)
+    if start_pin is None:
+        start_pin = best_start(canvas, space, pins)
     seq = [int(start_pin)]
     cur = int(start_pin)
     g = canvas.slope()
