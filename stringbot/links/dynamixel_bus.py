@@ -14,8 +14,10 @@ bus a ``fail(message) -> Exception`` that adds the step and the pin.
 """
 
 import logging
+import termios
 
 import dynamixel_sdk as sdk
+import serial
 
 from firmware_protocol import dynamixel as dx
 
@@ -38,6 +40,15 @@ _COMM = {getattr(sdk, name): name for name in dir(sdk) if name.startswith("COMM_
 _HINTS = {sdk.COMM_RX_TIMEOUT: "it does not answer: check its power, cable, id and baud rate",
           sdk.COMM_RX_CORRUPT: "its answers arrive corrupted: check the cable and termination",
           sdk.COMM_PORT_BUSY: "the port is busy"}
+
+
+#: What the SDK's port raises when the adapter or its cable is gone (pyserial, the OS, termios).
+PORT_ERRORS = (serial.SerialException, OSError, termios.error)
+
+
+def _first_line(exc):
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return text
 
 
 def comm_name(result):
@@ -100,6 +111,7 @@ class ServoBus:
         self.polls = 0          # sync reads sent
         self.packets = 0        # other instruction packets sent
         self.retried = 0        # exchanges repeated after a COMM_* failure
+        self.lost = None        # why the port is gone (a pulled cable): every exchange then fails at once
 
     def name(self, servo_id):
         return f"{self.roles.get(servo_id, 'unknown')} servo (id {servo_id})"
@@ -107,6 +119,7 @@ class ServoBus:
     # ---- port -------------------------------------------------------------------------------
     def open(self, baud):
         """Open the port; False when the SDK does not know ``baud``.  Port errors propagate."""
+        self.lost = None
         if not self.port.openPort():
             return False
         if not self.port.setBaudRate(baud):
@@ -120,14 +133,32 @@ class ServoBus:
         if settle_s:
             time.sleep(settle_s)
         self.port.is_using = False
-        if self.port.ser is not None:
-            self.port.clearPort()
+        if self.port.ser is not None and self.lost is None:
+            self._call(None, "clearing the input", self.port.clearPort)
 
     def close(self):
         if self.port.ser is not None and self.port.is_open:
             self.port.closePort()
 
     # ---- exchanges ----------------------------------------------------------------------------
+    def _call(self, servo_id, what, call, *args, attempt=0):
+        """One SDK call, waiting longer for its answer on a retry (:data:`RETRY_GRACE_MS`); the
+        port raising (a pulled cable, a dead adapter) becomes one failure naming the operation,
+        and every later exchange fails at once with the same reason."""
+        if self.lost is not None:
+            raise self.fail(self.lost)
+        self._grace(attempt)
+        try:
+            return call(*args)
+        except PORT_ERRORS as exc:
+            who = f"the {self.name(servo_id)}, " if servo_id is not None else ""
+            self.lost = (f"lost the port {self.url} at {who}{what} ({_first_line(exc)}): check the servo "
+                         "adapter, its USB cable and the servos' power")
+            log.debug("port error", exc_info=True)
+            raise self.fail(self.lost) from None
+        finally:
+            self.port.grace_ms = 0.0
+
     def _retry(self, servo_id, what, call, *args, expect=None):
         """Run an SDK call whose result is ``out[-2]``; retry COMM failures; return its output.
 
@@ -136,9 +167,8 @@ class ServoBus:
         """
         for attempt in range(self.retries + 1):
             self.port.is_using = False        # an interrupted exchange must not leave the port "busy"
-            self._grace(attempt)
             try:
-                out = call(*args)
+                out = self._call(servo_id, what, call, *args, attempt=attempt)
                 result = out[-2] if isinstance(out, tuple) else out
             except IndexError:                    # the SDK parsing a short (late) answer as this one's
                 self.port.is_using = False
@@ -254,8 +284,7 @@ class ServoBus:
             group.addParam(servo_id)
         for attempt in range(self.retries + 1):
             self.port.is_using = False
-            self._grace(attempt)
-            result = group.txRxPacket()
+            result = self._call(ids[0], "polling the positions", group.txRxPacket, attempt=attempt)
             self.polls += 1
             if result == sdk.COMM_SUCCESS and all(len(group.data_dict[i]) == POLL_LENGTH for i in ids):
                 if attempt:

@@ -9,10 +9,11 @@ when it lowers it, so the picture can only get better and the thread stays
 one continuous thread (a pin is replaced or dropped between its two
 neighbours; no pin twice in a row):
 
-* *reroute* pin ``k``: its two chords ``(p[k-1], p[k])``, ``(p[k], p[k+1])``
-  are lifted off the drawing and the best pin ``q`` to go through instead is
-  chosen by the same score as the planner's (the mean residual along both new
-  chords); kept when the exact error is lower than with ``p[k]``;
+* *reroute* pin ``k``: the best pin ``q`` to go through instead of ``p[k]``
+  between its neighbours is proposed by the same score as the planner's (the
+  mean residual along both new chords, read on the drawing as it is), and the
+  two chords ``(p[k-1], q)``, ``(q, p[k+1])`` replace ``(p[k-1], p[k])``,
+  ``(p[k], p[k+1])`` when the exact error of the whole change is lower;
 * *remove* pin ``k`` (automatic line counts only): its two chords become one,
   ``(p[k-1], p[k+1])``, when that lowers the error.
 
@@ -33,7 +34,7 @@ __all__ = ["refine_sequence"]
 def _chord_score(canvas, pin_lines, a):
     """Mean residual of every chord from pin ``a``: ``(others, scores)``."""
     others, pix, starts, counts = pin_lines.get_with_counts(a)
-    return others, np.add.reduceat(canvas.slope().take(pix), starts) / counts
+    return others, np.add.reduceat(canvas.slope().take(pix), starts) / counts * canvas.gain_row(a, others)
 
 
 def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):
@@ -85,9 +86,9 @@ def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):
             continue
         a, p, c = seq[i], seq[k], seq[j]
         old = [(a, p), (p, c)]
-        canvas.apply(chords_out=old)
-        base = canvas.delta(chords_in=old)  # the error change of putting them back: the bar to beat
-        best, best_pins = base, None
+        # the chord scores are read with the old chords still drawn (they only propose a pin; the exact
+        # error of the whole change decides), so that a pin left as it is costs no redrawing
+        best, best_pins = 0.0, None
         oa, sa = _chord_score(canvas, pin_lines, a)
         oc, sc = _chord_score(canvas, pin_lines, c)
         total = np.full(len(canvas.pin_xy), -np.inf)
@@ -98,24 +99,23 @@ def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):
         total[[a, c, p]] = -np.inf
         q = int(np.argmax(total))
         if np.isfinite(total[q]):
-            d = canvas.delta(chords_in=[(a, q), (q, c)])
+            d = canvas.delta(chords_out=old, chords_in=[(a, q), (q, c)])
             if d < best - 1e-12:
                 best, best_pins = d, [q]
         if remove and a != c and pin_lines.space.index[a, c] >= 0:
-            d = canvas.delta(chords_in=[(a, c)])
+            d = canvas.delta(chords_out=old, chords_in=[(a, c)])
             if d < best - 1e-12:
                 best, best_pins = d, []
         if best_pins is None:
-            canvas.apply(chords_in=old)
             continue
-        drop += base - best
+        drop -= best
         if best_pins:
             seq[k] = best_pins[0]
-            canvas.apply(chords_in=[(a, best_pins[0]), (best_pins[0], c)])
+            canvas.apply(chords_out=old, chords_in=[(a, best_pins[0]), (best_pins[0], c)])
             rerouted += 1
         else:
             alive[k] = False
-            canvas.apply(chords_in=[(a, c)])
+            canvas.apply(chords_out=old, chords_in=[(a, c)])
             removed += 1
     out = [p for p, keep in zip(seq, alive) if keep]
     log.info("refine: %d rerouted, %d removed of %d tried; error %.4g lower", rerouted, removed, len(order), drop)
