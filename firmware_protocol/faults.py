@@ -32,6 +32,11 @@ moving or not.
     power is lost: motion stops where it is, the port drops (reads and writes
     fail), and after :data:`POWER_OFF_SECONDS` the firmware starts again with
     its position lost; the banner waits for the host.
+``freeze``
+    the firmware's main loop hangs: from then on it reads nothing and says
+    nothing (no ``ok``, no ``busy:`` keepalive, no status report); motion
+    already handed to the steppers runs out.  Only ``power`` or ``reboot``
+    (or a board that resets when the port opens) brings it back.
 ``disconnect``
     the USB cable is pulled: what is in transit is lost and the port drops
     for :data:`DISCONNECT_SECONDS`; the firmware keeps running (queued motion
@@ -61,7 +66,7 @@ from dataclasses import dataclass
 __all__ = ["KINDS", "MACHINE_KINDS", "LINE_KINDS", "Fault", "FaultPlan", "parse_faults", "FAULTS_FORM",
            "POWER_OFF_SECONDS", "DISCONNECT_SECONDS", "BOOT_SECONDS"]
 
-MACHINE_KINDS = ("disconnect", "reset", "reboot", "power")
+MACHINE_KINDS = ("disconnect", "reset", "reboot", "power", "freeze")
 LINE_KINDS = ("garble", "drop-ok", "error", "ignore")
 KINDS = MACHINE_KINDS + LINE_KINDS
 FAULTS_FORM = ("a comma list of kind@N, kind@N+F (0<F<1), kind@t=SECONDS or, for "

@@ -261,3 +261,23 @@ def test_bulk_write_and_bulk_read_exact_exchange(machine):
     emu.receive(dx.encode_instruction(dx.BROADCAST_ID, I.BULK_READ, params))
     assert emu.transmit() == dx.encode_status(2, 0, b"\x01") + dx.encode_status(1, 0, dx.to_bytes(0, 4))
     assert read(emu, 1, "Torque Enable") == 1
+
+
+def test_unplug_drops_the_port_while_the_powered_servos_finish_their_motion(machine):
+    world = World(machine)
+    emu = DynamixelEmulator(machine, world=world, faults="unplug@move=1:off=20")
+    assert parse_faults("disconnect@4")[0].kind.value == "unplug"
+    write(emu, 1, "Operating Mode", 4)
+    write(emu, 1, "Torque Enable", 1)
+    write(emu, 1, "Profile Velocity", 100)
+    write(emu, 1, "Goal Position", 8 * 4096)
+    duration = emu.ring.motion.duration
+    assert settle(emu) is False                                    # polled up to the fault, halfway
+    assert not emu.port_up and exchange(emu, 1, I.PING) == []      # the cable is out
+    emu.advance(None)                                              # nobody polls: the motion goes on
+    assert emu.now == pytest.approx(duration) and not emu.port_up
+    assert world.ring_deg == pytest.approx(720.0, abs=0.1)         # the whole move: 8 turns = 2 ring turns
+    emu.advance(None)
+    assert emu.port_up and emu.now == pytest.approx(duration / 2 + 20.0)
+    assert read(emu, 1, "Torque Enable") == 1                      # powered all along: nothing lost
+    assert read(emu, 1, "Present Position") == 8 * 4096

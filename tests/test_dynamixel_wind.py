@@ -496,3 +496,73 @@ def test_host_and_servo_power_lost_together_on_a_long_move_asks_which_pin(machin
     assert wraps_before == world.wraps[:len(wraps_before)]
     assert result.steps_done == len(plan.sequence)
     assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
+
+
+def _error_lines(stderr):
+    return [line for line in stderr.splitlines() if line.startswith("stringbot: error:")]
+
+
+def test_a_pulled_cable_is_one_line_and_a_stop_record_then_resume_finishes(machine, tmp_path):
+    """``unplug@30``: the simulator closes its pty halfway through the 30th servo move (the servos,
+    still powered, finish it), then opens it again: ``wind`` exits 1 with one line and the resume
+    hint, the journal holds the stop; ``--resume`` winds the rest exactly."""
+    import json
+
+    from stringbot.planner import write_plan
+    from stringbot.winding import read_journal
+
+    plan = make_plan(PLANS["random"])
+    write_plan(plan, tmp_path / "plan.json")
+    record = tmp_path / "world.json"
+    sim, pty = _simulate(tmp_path, "--record", str(record), "--faults", "unplug@30")
+    try:
+        first = _stringbot("wind", str(tmp_path / "plan.json"), "--machine", "dynamixel-ring", "--port", pty,
+                           "--yes")
+        stop = read_journal(tmp_path / "plan.json.journal").last_stop
+        again = _stringbot("wind", str(tmp_path / "plan.json"), "--machine", "dynamixel-ring", "--port", pty,
+                           "--yes", "--resume")
+    finally:
+        _stop(sim)
+    assert first.returncode == 1 and "Traceback" not in first.stderr, first.stderr
+    [line] = _error_lines(first.stderr)
+    assert f"lost the port {pty}" in line and "--resume" in line
+    assert stop["reason"] == "failed" and "lost the port" in stop["error"]
+    assert again.returncode == 0, again.stderr
+    doc = json.loads(record.read_text())
+    assert [w["pin"] for w in doc["wraps"]] == plan.sequence and doc["collisions"] == []
+
+
+def test_the_simulator_killed_mid_winding_is_one_line_and_a_stop_record(machine, tmp_path):
+    """The bus dies for good (the simulator's process is killed, its pty with it) while winding."""
+    import subprocess
+    import sys
+    import time
+
+    from stringbot.planner import write_plan
+    from stringbot.winding import read_journal
+
+    plan = make_plan(PLANS["random"] * 3)
+    write_plan(plan, tmp_path / "plan.json")
+    journal = tmp_path / "plan.json.journal"
+    sim, pty = _simulate(tmp_path)
+    wind = subprocess.Popen([sys.executable, "-c", "from stringbot.cli import main; main()", "wind",
+                             str(tmp_path / "plan.json"), "--machine", "dynamixel-ring", "--port", pty, "--yes"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(1200):                    # until a few steps are wound
+            if journal.exists() and journal.read_text().count('"kind":"done"') >= 5 or wind.poll() is not None:
+                break
+            time.sleep(0.05)
+        sim.kill()
+        sim.communicate(timeout=10)
+        _, err = wind.communicate(timeout=120)
+    finally:
+        for proc in (sim, wind):
+            if proc.poll() is None:
+                proc.kill()
+    assert wind.returncode == 1 and "Traceback" not in err, err
+    [line] = _error_lines(err)
+    assert f"lost the port {pty}" in line and "--resume" in line
+    state = read_journal(journal)
+    assert state.last_stop["reason"] == "failed" and "lost the port" in state.last_stop["error"]
+    assert 5 <= len(state.done) < len(plan.sequence)

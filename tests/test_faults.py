@@ -175,3 +175,19 @@ def test_power_fault_on_a_pty_drops_the_port_and_the_firmware_restarts(tmp_path)
         stop.set()
         thread.join(5)
         server.close()
+
+
+def test_marlin_freeze_is_deaf_and_mute_until_a_reboot():
+    emu, world = build_emulator("marlin-ring", faults="freeze@2,reboot@t=100")
+    emu.transmit()
+    emu.receive(b"G0 A90 F7200\n")
+    assert emu.transmit() == b"ok\n"
+    emu.receive(b"M400\n")                      # line 2: the main loop hangs as it arrives
+    emu.advance(30.0)
+    assert emu.transmit() == b""                # no ok, no busy: keepalive
+    assert world.ring_deg == pytest.approx(90.0, abs=0.05)    # the steppers ran out their move
+    emu.receive(b"M114\n")
+    emu.advance(30.0)
+    assert emu.transmit() == b""                # deaf
+    emu.advance(100.0)                          # the reboot at t=100 ends it
+    assert emu.transmit().startswith(b"start\n")

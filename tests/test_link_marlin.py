@@ -137,6 +137,51 @@ def test_silence_is_a_clear_failure():
     port.assert_done()
 
 
+def test_a_marlin_that_stops_sending_keepalives_is_declared_unresponsive(tmp_path):
+    """``stringbot simulate`` (its own process, a pty) with the ring slowed to 30 deg/s, so a long
+    jump's M400 waits long enough for busy: keepalives; then ``freeze@60`` hangs the firmware.
+    ``wind`` stops after a few keepalive periods (not motion_timeout's 600 s): exit 1, one line,
+    a stop record, the resume hint."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from stringbot.planner import write_plan
+    from stringbot.winding import read_journal
+    from test_gcode_replay import make_plan
+
+    write_plan(make_plan([0, 150, 1, 151, 2, 152, 299, 149, 75, 225]), tmp_path / "plan.json")
+    pty = tmp_path / "pty"
+    cli = [sys.executable, "-c", "from stringbot.cli import main; main()"]
+    sim = subprocess.Popen(cli + ["simulate", "--machine", "marlin-ring", "--pty", str(pty), "--set", "M203 A30",
+                                  "--faults", "freeze@60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(200):
+            if os.path.islink(pty):
+                break
+            time.sleep(0.05)
+        wind = subprocess.run(cli + ["wind", str(tmp_path / "plan.json"), "--machine", "marlin-ring", "--port",
+                                     str(pty), "--yes", "--no-check"], capture_output=True, text=True, timeout=300)
+    finally:
+        sim.send_signal(signal.SIGINT)
+        sim.communicate(timeout=10)
+    assert wind.returncode == 1 and "Traceback" not in wind.stderr, wind.stderr
+    [line] = [x for x in wind.stderr.splitlines() if x.startswith("stringbot: error:")]
+    assert "stopped answering" in line and "keepalives" in line and "--resume" in line
+    stop = read_journal(tmp_path / "plan.json.journal").last_stop
+    assert stop["reason"] == "failed" and "stopped answering" in stop["error"]
+
+
+def test_hang_after_is_a_few_periods_within_bounds():
+    from stringbot.links.marlin import HANG_CAP_S, HANG_FLOOR_S, hang_after
+    assert hang_after(2.0) == 6.0                      # three of Marlin's default periods
+    assert hang_after(0.01) == HANG_FLOOR_S            # a fast simulator: never sooner than the floor
+    assert hang_after(60.0) == HANG_CAP_S == 180.0     # M113's longest period
+    assert hang_after(None) == HANG_CAP_S              # keepalives heard, period not yet measured
+
+
 def test_ctrl_c_right_after_a_line_is_written_never_reuses_its_number_nor_reports_a_stale_position():
     """Ctrl-C landing just after ``N2 M400`` left the port: the position read for the stop record
     goes as N3 (an N2 would be taken by Marlin for a resend and answered by nothing), and a reply

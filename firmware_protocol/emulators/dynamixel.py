@@ -36,8 +36,12 @@ Faults (``faults="power_loss@move=40, corrupt@packet=12"``, comma-separated;
 - ``hardware_error@move=N[:id=I][:bits=B]``: Hardware Error Status B (default 0x20,
   Overload), torque off, the Alert bit in every status packet until REBOOT.
 - ``corrupt@packet=N``: the N-th status packet sent has a flipped byte (bad CRC).
+- ``unplug@move=N[:off=S]``: the adapter's USB cable is pulled: the port goes away for S
+  virtual seconds (default 0.5; the pty is closed, a host's read or write fails) while
+  the servos, still powered, finish their motion; then the port is back.
 
-Short forms as for the G-code simulator: ``power@N``, ``silent@N``, ``hardware@N``, ``corrupt@N``.
+Short forms as for the G-code simulator: ``power@N``, ``silent@N``, ``hardware@N``, ``corrupt@N``,
+``unplug@N`` (``disconnect@N`` is the same).
 """
 
 import enum
@@ -63,6 +67,7 @@ class FaultKind(enum.Enum):
     SILENT = "silent"
     HARDWARE_ERROR = "hardware_error"
     CORRUPT = "corrupt"
+    UNPLUG = "unplug"
 
 
 @dataclass
@@ -74,7 +79,7 @@ class Fault:
     off_s: float = 0.5
 
 
-_ALIASES = {"power": "power_loss", "hardware": "hardware_error"}
+_ALIASES = {"power": "power_loss", "hardware": "hardware_error", "disconnect": "unplug"}
 
 
 def parse_faults(spec):
@@ -110,7 +115,8 @@ def parse_faults(spec):
         except (ValueError, KeyError):
             raise ValueError(
                 f"bad Dynamixel fault {item!r}; expected power_loss@move=N[:off=S], "
-                "silent@move=N[:id=I], hardware_error@move=N[:id=I][:bits=B] or corrupt@packet=N") from None
+                "silent@move=N[:id=I], hardware_error@move=N[:id=I][:bits=B], unplug@move=N[:off=S] or "
+                "corrupt@packet=N") from None
         faults.append(fault)
     return faults
 
@@ -181,6 +187,8 @@ class DynamixelEmulator(Emulator):
 
     # -- Emulator interface ------------------------------------------------------------------------
     def receive(self, data):
+        if not self.port_up:                    # nobody is connected: the bytes go nowhere
+            return
         for packet in self._reader.feed(bytes(data)):
             self._handle(packet)
 
@@ -203,8 +211,8 @@ class DynamixelEmulator(Emulator):
     def next_event_in(self):
         """Realtime: the next motion end or fault.  Fast mode: motion (and the faults due
         during it) advance only as the host polls, so only a pending power-up counts."""
-        if self._clock_driven or not self._moving():
-            return self._next_internal()
+        if self._clock_driven or not self._moving() or not self.port_up:
+            return self._next_internal()      # (unplugged: no host polls, the servos go on)
         return None
 
     def advance(self, dt=None):
@@ -250,6 +258,13 @@ class DynamixelEmulator(Emulator):
             self.servos[fault.servo_id or self.ring_id].answering = False
         elif action == "hardware_error":
             self.servos[fault.servo_id or self.ring_id].hardware_error(self.now, fault.bits)
+        elif action == "unplug":
+            self.port_up = False
+            self._out.clear()
+            self._reader = dx.PacketReader()
+            self._events.append((self.now + fault.off_s, "plug", fault))
+        elif action == "plug":
+            self.port_up = True
 
     def _motion_started(self, servo):
         self._moves += 1
@@ -261,7 +276,7 @@ class DynamixelEmulator(Emulator):
 
     # -- packets ------------------------------------------------------------------------------------
     def _send(self, servo, error=0, params=b""):
-        if servo.power is Power.OFF or not servo.answering:
+        if servo.power is Power.OFF or not servo.answering or not self.port_up:
             return False
         packet = bytearray(dx.encode_status(servo.id, error | servo.error_bits, params))
         self._packets += 1

@@ -32,6 +32,7 @@ class Power(enum.Enum):
     OFF = "off"              # a power loss: the firmware is not running
     UNPLUGGED = "unplugged"  # the cable is out: the firmware runs, the port is gone
     BOOTING = "booting"      # the board restarts (reboot, reset on open): deaf and mute a moment
+    FROZEN = "frozen"        # the main loop hangs (freeze): deaf and mute until power or a reboot
 
 
 def physical_home(machine, ring_now):
@@ -261,7 +262,7 @@ class GcodeFirmware(Emulator):
         to apply (``error``, ``drop-ok``, ``ignore``); or None when the line is gone.
         """
         kinds = self.faults.next_line()
-        for kind in ("power", "disconnect", "reboot", "reset"):
+        for kind in ("power", "disconnect", "reboot", "reset", "freeze"):
             if kind in kinds:
                 self._fire_kind(kind, f"line={self.faults.lines}")
                 return None
@@ -285,7 +286,8 @@ class GcodeFirmware(Emulator):
         self._fire_kind(fault.kind, fault.when())
 
     def _fire_kind(self, kind, at):
-        if self.power in (Power.OFF, Power.BOOTING) or (kind == "disconnect" and not self.port_up):
+        if self.power in (Power.OFF, Power.BOOTING) or (kind == "disconnect" and not self.port_up) \
+                or (self.power is Power.FROZEN and kind in ("freeze", "disconnect", "reset")):
             log.info("fault %s@%s: nothing to hit (the firmware is %s)", kind, at, self.power.value)
             self._note(kind, at=at, skipped=f"the firmware is {self.power.value}")
             return
@@ -298,6 +300,8 @@ class GcodeFirmware(Emulator):
             self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
         elif kind == "reboot":
             self._reboot()
+        elif kind == "freeze":
+            self._freeze()
         else:
             self._fault_reset()
 
@@ -323,6 +327,13 @@ class GcodeFirmware(Emulator):
         if was_off:
             self._power_on()
         log.info("port back up")
+
+    def _freeze(self):
+        """The main loop hangs: nothing more is read, answered or planned (no ``busy``, no status
+        report); motion already queued for the steppers runs out; a power cycle or a reboot
+        (an Uno's reset on open) ends it."""
+        self.power = Power.FROZEN
+        self._out.clear()
 
     def _reboot(self):
         """The board restarts: everything in progress is lost at once; for BOOT_SECONDS it hears

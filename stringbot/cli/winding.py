@@ -5,7 +5,6 @@ import sys
 import click
 
 from ..errors import BadInput, Interrupted, MachineFailure
-from ..links.settings_check import SettingsDisagree
 from . import cli
 from .progress import fmt_s as _fmt_s
 
@@ -72,6 +71,8 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     again = _resume_command(plan, machine_name, port, journal)
     ask = _Asking()
 
+    # the settings check is imported here, not at the top: `stringbot plan` does not need it
+    from ..links.settings_check import SettingsDisagree
     from .progress import WindProgress
 
     progress = WindProgress(every=progress_every).start()
@@ -171,7 +172,7 @@ def _summary(result, machine):
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
 @click.option("--faults", default=None, help="Faults to inject, a comma list: kind@N (as line N arrives), "
                                              "kind@N+F (F of line N's move done), kind@t=SECONDS, kind@N..M; "
-                                             "kinds reset, reboot, power, disconnect, garble, drop-ok, error, "
+                                             "kinds reset, reboot, power, disconnect, freeze, garble, drop-ok, error, "
                                              "ignore (docs/simulator.md).")
 @click.option("--set", "settings", multiple=True, metavar="SETTING",
               help="Start the firmware with this setting instead of the machine file's (repeatable): "

@@ -15,6 +15,14 @@ a ``Resend:`` and shift which ``ok`` answers which line).  To find a lost
 ``ok`` meanwhile, the link sends the next numbered line early as ``M114``:
 Marlin runs it only after the waiting line, so its ``X:...`` report proves
 that line done.
+
+A Marlin that sends ``busy:`` keepalives (``M113 S<period>``, on by default) says
+something at least once a period while it waits on motion.  Once the link has
+measured that period (the longest gap between two keepalives of one wait), a
+motion wait that hears nothing for :func:`hang_after` (three periods, at least
+:data:`HANG_FLOOR_S`) ends with "the machine stopped answering" instead of
+waiting ``motion_timeout``; with keepalives heard but no period measured yet,
+:data:`HANG_CAP_S` (three times ``M113``'s longest period) is the limit.
 """
 
 import logging
@@ -25,9 +33,24 @@ from firmware_protocol import marlin as marlin_codes
 
 from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment, where_of
 
-__all__ = ["MarlinLink", "numbered"]
+__all__ = ["MarlinLink", "numbered", "hang_after", "HANG_FLOOR_S", "HANG_CAP_S"]
 
 log = logging.getLogger(__name__)
+
+#: Keepalive periods of silence after which a waiting Marlin is declared unresponsive.
+HANG_PERIODS = 3
+#: Never sooner than this (seconds): a loaded host, a USB hiccup.
+HANG_FLOOR_S = 5.0
+#: Never later than this once keepalives were heard (``M113`` allows periods up to 60 s).
+HANG_CAP_S = 180.0
+
+
+def hang_after(period_s):
+    """Seconds of silence that mean a Marlin whose keepalive period is ``period_s`` (None: not
+    measured yet) has stopped: ``HANG_PERIODS`` periods within [HANG_FLOOR_S, HANG_CAP_S]."""
+    if period_s is None:
+        return HANG_CAP_S
+    return min(max(HANG_PERIODS * period_s, HANG_FLOOR_S), HANG_CAP_S)
 
 _RESEND = re.compile(r"^(?:Resend|rs)\s*:?\s*N?(\d+)", re.IGNORECASE)
 _POS = re.compile(r"([XYZABCE]):\s*(-?\d+(?:\.\d+)?)")
@@ -68,6 +91,8 @@ class MarlinLink(LineLink):
         self.resends = 0
         self.last_position = None
         self.last_counts = None       # M114's "Count": the steppers' own step counts
+        self.keepalives = False       # a busy: keepalive was heard (M113 is on)
+        self.keepalive_s = None       # the longest gap measured between two keepalives of one wait
         self._history = {}
         self._swallow = 0
         self._awaiting = None
@@ -216,14 +241,22 @@ class MarlinLink(LineLink):
     def _await_inner(self, n, where, timeout, motion=False):
         deadline = time.monotonic() + timeout
         silence = time.monotonic() + self.response_timeout
+        heard = time.monotonic()       # the last line of any kind
+        last_busy = None               # the last keepalive of this wait
         probes = 0
         probe, reported = None, False  # the M114 sent early behind line n; its X: report came
         while True:
-            line = self.readline(max(0.0, min(deadline, silence) - time.monotonic()))
+            hang = heard + hang_after(self.keepalive_s) if motion and self.keepalives else deadline
+            line = self.readline(max(0.0, min(deadline, silence, hang) - time.monotonic()))
             now = time.monotonic()
             if line is None:
                 if now >= deadline:
                     raise self.fail(f"the machine did not answer within {timeout:.0f} s", where)
+                if now >= hang:
+                    period = f"every {self.keepalive_s:.2g} s" if self.keepalive_s else "before"
+                    raise self.fail(f"the machine stopped answering: nothing for {now - heard:.0f} s although "
+                                    f"it sent busy keepalives {period} (frozen firmware, or a dead port)",
+                                    where)
                 if motion:
                     # still moving, or line n's ok was lost: never send it again; ask M114
                     # behind it, once (its answer comes when line n is done)
@@ -243,6 +276,7 @@ class MarlinLink(LineLink):
                 silence = now + self.response_timeout
                 continue
             silence = now + self.response_timeout
+            heard = now
             low = line.lower()
             if line.startswith("ok"):
                 if self._swallow:
@@ -271,6 +305,10 @@ class MarlinLink(LineLink):
                 continue
             if "busy" in low or low.startswith("wait"):
                 deadline = max(deadline, now + self.response_timeout)
+                if "busy" in low:
+                    if last_busy is not None:
+                        self.keepalive_s = max(self.keepalive_s or 0.0, now - last_busy)
+                    self.keepalives, last_busy = True, now
                 continue
             if low.startswith("error"):
                 if "checksum" in low or "line number" in low:
