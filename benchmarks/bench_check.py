@@ -25,7 +25,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-MACHINES = ["grbl-ring", "grblhal-ring", "marlin-ring", "dynamixel-ring"]
+MACHINES = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring", "dynamixel-ring"]
 STRINGBOT = [sys.executable, "-c", "import sys; from stringbot.cli import main; main(sys.argv[1:])"]
 
 

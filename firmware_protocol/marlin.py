@@ -11,7 +11,7 @@ import re
 
 __all__ = [
     "VERSION", "EOL", "OK", "START", "RX_BUFFER_SIZE", "BUFSIZE", "PLANNER_BLOCKS", "MAX_CMD_SIZE",
-    "KEEPALIVE_SECONDS", "BUSY_PROCESSING", "ERR_CHECKSUM_MISMATCH", "ERR_LINE_NO", "ERR_NO_CHECKSUM",
+    "KEEPALIVE_SECONDS", "BUSY_PROCESSING", "PAUSED_FOR_USER", "ERR_CHECKSUM_MISMATCH", "ERR_LINE_NO", "ERR_NO_CHECKSUM",
     "RESEND", "UNKNOWN_COMMAND", "checksum", "numbered", "parse_numbered", "parse_resend",
     "parse_position", "is_error",
 ]
@@ -28,6 +28,7 @@ MAX_CMD_SIZE = 96             # longer lines are cut
 #: ``echo:busy: processing`` comes every this many seconds while a command blocks (M113 S2).
 KEEPALIVE_SECONDS = 2.0
 BUSY_PROCESSING = "echo:busy: processing"
+PAUSED_FOR_USER = "echo:busy: paused for user"
 ERR_CHECKSUM_MISMATCH = "checksum mismatch, Last Line: "
 ERR_LINE_NO = "Line Number is not Last Line Number+1, Last Line: "
 ERR_NO_CHECKSUM = "No Checksum with line number, Last Line: "

@@ -14,16 +14,29 @@ fault), the server closes the pty: the host sees its port fail as with a
 pulled USB cable.  Once the emulator's port is back, and not before
 ``reopen_delay`` seconds, a new pty is opened and ``path`` re-pointed to it
 (atomically), so the host can reopen the same path.
+
+The operator's hands: a spool change shows on no axis, so beside the pty, at
+``path + ".operator"``, the server listens on a Unix datagram socket for what
+the operator did (:func:`tell_operator`): ``{"tie_on": "#rrggbb", "pin": N}``
+ties a thread on in the emulator's world, whose record then gives every later
+wrap that colour (as ``sim://``'s ``tie_on`` does in-process).  Messages are
+read before the pty's bytes, so a tie-on sent before the next line applies to it.
 """
 
 import errno
+import json
 import logging
 import os
 import select
+import socket
+import stat
 import time
 import tty
 
-__all__ = ["PtyServer", "PtyPathError", "check_pty_path"]
+__all__ = ["PtyServer", "PtyPathError", "check_pty_path", "tell_operator", "OPERATOR_SUFFIX"]
+
+#: The operator's socket lives at the pty's path plus this.
+OPERATOR_SUFFIX = ".operator"
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +57,22 @@ def check_pty_path(path):
     kind = "a folder" if os.path.isdir(path) else "a symlink elsewhere" if os.path.islink(path) else "a file"
     raise PtyPathError(f"{path!r} exists and is {kind}, not a symlink to a pseudo-terminal; "
                        "expected a new path (it is never replaced)")
+
+
+def tell_operator(path, message):
+    """Send ``message`` (a dict) to the operator socket of the simulator whose pty is at ``path``.
+
+    Returns False (nothing sent) when there is no such socket: a real port, or a simulator gone.
+    """
+    sock_path = os.fspath(path) + OPERATOR_SUFFIX
+    try:
+        if not stat.S_ISSOCK(os.stat(sock_path).st_mode):
+            return False
+        with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as s:
+            s.sendto(json.dumps(message).encode(), sock_path)
+        return True
+    except OSError:
+        return False
 
 
 class PtyServer:
@@ -75,6 +104,7 @@ class PtyServer:
         self._pending = bytearray()
         self._down_since = None
         self._wall = time.monotonic()
+        self._operator = None           # the operator's datagram socket (see the module's notes)
 
     # ---- the pty ----------------------------------------------------------------------------
     def start(self):
@@ -85,8 +115,45 @@ class PtyServer:
         PtyPathError
             If ``path`` exists and is not a symlink to a pty (nothing is opened or changed).
         """
+        self._open_operator()           # before the pty's path appears: whoever waits for it finds both
         self._open()
         return self
+
+    def _open_operator(self):
+        if getattr(self.emulator, "world", None) is None:
+            return
+        sock_path = self.path + OPERATOR_SUFFIX
+        try:
+            if stat.S_ISSOCK(os.lstat(sock_path).st_mode):
+                os.unlink(sock_path)        # a leftover of an earlier server
+        except FileNotFoundError:
+            pass
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        try:
+            s.bind(sock_path)
+        except OSError as exc:              # e.g. a file there: the simulator runs without it
+            log.warning("no operator socket at %s: %s", sock_path, exc)
+            s.close()
+            return
+        s.setblocking(False)
+        self._operator = s
+
+    def _hear_operator(self):
+        """Apply what the operator did (messages waiting on the operator socket)."""
+        while self._operator is not None:
+            try:
+                data = self._operator.recv(4096)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:
+                return
+            try:
+                msg = json.loads(data)
+                if "tie_on" in msg:
+                    self.emulator.world.tie_on(str(msg["tie_on"]), msg.get("pin"))
+                    log.info("operator: tied %s on at pin %s", msg["tie_on"], msg.get("pin"))
+            except (ValueError, TypeError, AttributeError) as exc:
+                log.warning("operator socket: ignored %r (%s)", data[:80], exc)
 
     def _open(self):
         check_pty_path(self.path)   # also on a reopen: a file put there meanwhile is not clobbered
@@ -122,6 +189,13 @@ class PtyServer:
         """Close the pty, remove the symlink (if it is still ours) and let the emulator write its
         records."""
         self._close_pty()
+        if self._operator is not None:
+            self._operator.close()
+            self._operator = None
+            try:
+                os.unlink(self.path + OPERATOR_SUFFIX)
+            except OSError:
+                pass
         self.emulator.close()
         try:
             if os.path.islink(self.path) and os.readlink(self.path) == self.slave_name:
@@ -157,7 +231,9 @@ class PtyServer:
             nxt = emu.next_event_in()
             if nxt is not None:
                 wait = min(wait, max(nxt, 0.001))
+        self._hear_operator()
         events = self._poll.poll(wait * 1000.0)
+        self._hear_operator()               # sent before the bytes that woke us: applies to them
         flags = events[0][1] if events else 0
         if flags & select.POLLHUP:
             self._client_since = None       # nobody has the port open: hold the output

@@ -242,8 +242,9 @@ class World:
             self._save()
 
     def close(self):
-        """The simulator is done with the world: write what is still unwritten."""
-        self.flush()
+        """The simulator is done with the world: write the record (always: a write that an
+        interruption cut short, e.g. Ctrl-C during its fsync, left the file behind the world)."""
+        self._save()
 
     def _changed(self, now_worth_saving):
         if self.record_path is None:
@@ -372,7 +373,7 @@ class World:
     def _save(self):
         if self.record_path is None:
             return
-        self._dirty = False
+        self._dirty = True              # until the write below is done
         self._saved_at = time.monotonic()
         # The wraps list only grows: serialise each wrap once and join, so that rewriting the
         # record after every wrap stays linear in its size (a full plan is thousands of wraps).
@@ -382,3 +383,4 @@ class World:
         del rest["wraps"]
         head = json.dumps(rest, indent=1)[:-2]  # drop the closing "\n}"
         _write_atomic(self.record_path, head + ',\n "wraps": [\n  ' + ",\n  ".join(frags) + "\n ]\n}\n")
+        self._dirty = False

@@ -257,10 +257,24 @@ def test_gcode_of_a_colour_plan_winds_every_layer_when_the_operator_ties_on_at_e
     assert [w.direction for w in world.wraps] == [s.direction for s in steps]
 
 
-def test_tools_that_need_one_thread_refuse_a_colour_plan(tmp_path, capsys):
-    path = tmp_path / "c.json"
-    write_plan(colour_plan(), path)
-    for argv in (["pins", str(path), "-o", str(tmp_path / "p.txt")],
-                 ["animate", str(path), "-o", str(tmp_path / "a.gif")]):
-        code, _, err = run(argv, capsys)
-        assert code == 2 and "3 colour layers" in err and len(err.strip().splitlines()) == 1
+def test_animate_draws_each_layer_in_its_colour_a_later_one_on_top(tmp_path, capsys):
+    from PIL import Image
+    path, gif = tmp_path / "c.json", tmp_path / "a.gif"
+    # pins 0 (top) -> 150 (bottom): red, vertical; then 75 (right) -> 225 (left) -> 0: blue, across it
+    write_plan(colour_plan(layers=[("#c8102e", [0, 150]), ("#1f5bb5", [75, 225, 0])]), path)
+    code, _, err = run(["animate", str(path), "-o", str(gif), "--frames", "3", "--size", "1001"], capsys)
+    assert code == 0, err
+    im = Image.open(gif)
+    frames = []
+    for k in range(im.n_frames):
+        im.seek(k)
+        frames.append(np.asarray(im.convert("RGB")).astype(int))
+    assert len(frames) == 3
+    red, blue = (0xc8, 0x10, 0x2e), (0x1f, 0x5b, 0xb5)
+    assert tuple(frames[0][250, 500]) == (255 - red[0], 255 - red[1], 255 - red[2])   # the newest chord
+    assert tuple(frames[1][250, 500]) == red                  # the red thread, once it is not the newest
+    assert tuple(frames[2][500, 750]) == blue                 # the blue thread
+    assert tuple(frames[2][500, 500]) == blue                 # where they cross, blue lies on top
+    assert tuple(frames[2][250, 500]) == red
+    assert tuple(frames[2][100, 900]) == (255, 255, 255)     # the board
+

@@ -183,3 +183,20 @@ def test_hang_after_is_a_few_periods_within_bounds():
     assert hang_after(0.01) == HANG_FLOOR_S            # a fast simulator: never sooner than the floor
     assert hang_after(60.0) == HANG_CAP_S == 180.0     # M113's longest period
     assert hang_after(None) == HANG_CAP_S              # keepalives heard, period not yet measured
+
+
+def test_ctrl_c_right_after_a_line_is_written_never_reuses_its_number_nor_reports_a_stale_position():
+    """Ctrl-C landing just after ``N2 M400`` left the port: the position read for the stop record
+    goes as N3 (an N2 would be taken by Marlin for a resend and answered by nothing), and a reply
+    that does not carry its report gives no position rather than the one read before the move
+    (which, trusted after a reboot, put the whole rest of the winding one pin off)."""
+    stale = b"X:0.00 Y:8.00 Z:0.00 A:-81.00 Count X:0 Y:0 Z:0 A:0\r\nok\r\n"
+    table = [(w(1, "M114"), stale), (w(2, "M400"), KeyboardInterrupt()),
+             (w(3, "M114"), b"ok\r\nX:0.00 Y:8.00 Z:0.00 A:-82.20 Count X:0 Y:0 Z:0 A:-48\r\nok\r\n")]
+    lk, port = link(table)
+    assert lk.status().fields["axes"]["A"] == -81.0
+    with pytest.raises(KeyboardInterrupt):
+        lk.command("M400")
+    axes = lk.status().fields["axes"]            # the first ok is the M400's: no report yet
+    assert axes.get("A") != -81.0
+    port.assert_done()

@@ -33,8 +33,8 @@ def forget_simulators():
     protocol_sim.forget()
 
 
-@pytest.mark.parametrize("machine, rows", [("grbl-ring", 9), ("grblhal-ring", 11), ("marlin-ring", 8),
-                                           ("dynamixel-ring", 13)])
+@pytest.mark.parametrize("machine, rows", [("grbl-ring", 9), ("grblhal-ring", 11), ("fluidnc-ring", 9),
+                                           ("marlin-ring", 8), ("dynamixel-ring", 13)])
 def test_each_bundled_machine_agrees_with_its_simulator(capsys, machine, rows):
     code, out, err = run(["machines", "check", machine], capsys)
     assert code == 0, err
@@ -43,6 +43,16 @@ def test_each_bundled_machine_agrees_with_its_simulator(capsys, machine, rows):
     table = lines[2:2 + rows]
     assert all(x.rstrip().endswith(("ok", "wind sets it")) for x in table), table
     assert lines[2 + rows] == f"all {rows} settings agree with the machine file"
+
+
+def test_a_setting_the_machine_file_does_not_give_is_not_counted_as_agreeing(tmp_path, capsys):
+    text = (load_machine("grbl-ring").path and open(load_machine("grbl-ring").path).read())
+    mine = tmp_path / "mine.toml"
+    mine.write_text("\n".join(x for x in text.splitlines() if not x.startswith("steps_per_mm")) + "\n")
+    code, out, err = run(["machines", "check", str(mine)], capsys)
+    assert code == 0, err
+    assert out.splitlines()[-1] == ("8 of 9 settings agree with the machine file; not checked (the machine "
+                                    "file does not say): $101 Y steps/unit (head)")
 
 
 def test_a_mis_set_grbl_names_the_setting_and_the_line_that_fixes_it(tmp_path, capsys):
@@ -186,3 +196,16 @@ def test_dynamixel_rules():
     assert "ticks per turn" in wrong.setting and wrong.fix == () and "ticks_per_turn = 4096" in wrong.hint
     notes = [r for r in report.rows if r.verdict is Verdict.NOTE]
     assert notes and "set ring.feed_deg_per_min" in notes[0].hint
+
+
+def test_apply_without_a_terminal_is_one_line_and_sends_nothing(tmp_path):
+    import subprocess
+    import sys
+    port = url(tmp_path, "grbl-ring", "$100=40")
+    p = subprocess.run([sys.executable, "-m", "stringbot.cli", "machines", "check", "grbl-ring", "--port", port,
+                        "--apply"], stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2
+    assert p.stderr.splitlines()[-1] == (
+        "stringbot: error: --apply asks before sending, but standard input ended (not a terminal); "
+        "nothing was sent: run in a terminal, or add --yes")
+    assert "Traceback" not in p.stderr

@@ -116,3 +116,29 @@ def test_a_plan_for_another_ring_or_a_square_plan_with_a_ring_machine_is_refused
     write_plan(sq, path)
     one_error_line(*run("pins", path, "-o", tmp_path / "x.txt", "--machine", "grbl-ring")[::2],
                    "winds a ring")
+
+
+def test_a_colour_plan_is_listed_thread_by_thread_as_the_simulated_machine_winds_it(tmp_path):
+    from test_colour_plan import colour_plan
+    path, out, rec = tmp_path / "c.json", tmp_path / "pins.csv", tmp_path / "rec.json"
+    plan = colour_plan(pins=300, n=(40, 30, 25))
+    plan.diameter_mm, plan.thread_mm = 500.0, 0.25
+    write_plan(plan, path)
+    code, _, err = run("pins", path, "-o", out, "--machine", "grbl-ring")
+    assert code == 0, err
+    text = out.read_text()
+    assert "# threads: 3, wound in this order" in text and "#c8102e): steps 41-70, tie on at pin" in text
+    rows = rows_of_csv(text)
+    code, _, err = run("wind", path, "--machine", "grbl-ring", "--yes", "--record", rec)
+    assert code == 0, err
+    wraps = json.loads(rec.read_text())["wraps"]
+    assert [(int(r["pin"]), r["color"]) for r in rows] == [(w["pin"], w["color"]) for w in wraps]
+    named = {1: "cw", -1: "ccw"}
+    assert all(r["wrap"] in ("either", named[w["direction"]]) for r, w in zip(rows, wraps))
+    txt = tmp_path / "pins.txt"
+    code, _, err = run("pins", path, "-o", txt)
+    assert code == 0, err
+    lines = txt.read_text().splitlines()
+    k = next(i for i, x in enumerate(lines) if x.startswith("        -- thread 2 of 3: cut the thread; tie ")
+             and x.endswith(f"(#c8102e) on at pin {plan.layers[1].sequence[0]} --"))
+    assert lines[k + 1].split()[:2] == ["41", str(plan.layers[1].sequence[0])]

@@ -139,3 +139,53 @@ def test_fit_letterboxes_the_whole_picture(tmp_path):
 def test_blank_picture_is_refused():
     with pytest.raises(BadInput, match="nothing to draw"):
         plan_picture("x", pins=40, size=101, picture=picture(np.full((101, 101), 255.0)))
+
+
+def test_a_chord_drawn_again_adds_only_what_the_thread_model_leaves_uncovered():
+    from stringbot.planner.residual import repeat_gains
+
+    gains = repeat_gains()
+    assert gains[0] == 1.0 and 0.6 < gains[1] < 0.95 and gains[2] < 0.5 and np.all(np.diff(gains) <= 0)
+    g = disc_picture()
+    space = chord_space(80)
+    canvas = canvas_of(g, space)
+    e0 = canvas.error()
+    once = canvas.apply(chords_in=[(3, 40)])
+    assert canvas.error() == pytest.approx(e0 + once, rel=1e-9)
+    s1 = canvas.S.sum()
+    predicted = canvas.delta(chords_in=[(40, 3)])  # the same chord, the other way round
+    twice = canvas.apply(chords_in=[(40, 3)])
+    assert twice == pytest.approx(predicted, rel=1e-9)
+    assert canvas.S.sum() - s1 == pytest.approx(gains[1] * s1, rel=1e-6)
+    assert canvas.uses[3, 40] == canvas.uses[40, 3] == 2
+    # two copies at once, then both lifted: back to the blank board, the error's changes add up
+    both = canvas.delta(chords_in=[(3, 40), (3, 40)])
+    assert both == pytest.approx(canvas.apply(chords_in=[(3, 40), (3, 40)]), rel=1e-9)
+    canvas.apply(chords_out=[(3, 40)] * 4)
+    assert canvas.error() == pytest.approx(e0, rel=1e-9) and canvas.S.max() < 1e-9 and canvas.uses.max() == 0
+
+
+def test_residual_starts_at_an_end_of_its_best_chord_unless_told():
+    from stringbot.planner.residual import best_start
+
+    g = disc_picture()
+    space = chord_space(80)
+    pl = _PinLines(space, g.shape[0], nearest=True)
+    canvas = canvas_of(g, space, width_px=0.25 / 500 * g.shape[0])  # the default thread at 101 px
+
+    def top(a):
+        others, pix, starts, counts = pl.get_with_counts(a)
+        scores = np.add.reduceat(canvas.slope().take(pix), starts) / counts
+        return float(scores.max()), int(others[int(np.argmax(scores))])
+
+    start = best_start(canvas, space, pl)
+    best = max(top(a)[0] for a in range(space.pins))
+    assert top(start)[0] == best
+    pic = picture(g)
+    p = plan_picture("x", pins=80, size=101, picture=pic, lines=30, refine=0)
+    assert p.sequence[0] == p.parameters["start_pin"]
+    first = p.sequence[0]
+    assert top(first)[0] == pytest.approx(best, rel=1e-5)  # the same chord, up to the picture's float32
+    assert p.sequence[1] == top(first)[1]
+    told = plan_picture("x", pins=80, size=101, picture=pic, lines=30, start_pin=7)
+    assert told.sequence[0] == told.parameters["start_pin"] == 7

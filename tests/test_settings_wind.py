@@ -139,3 +139,17 @@ def test_a_dry_run_checks_too_and_agrees(tmp_path, capsys, caplog):
             code, out, err = run(["wind", str(tmp_path / "plan.json"), "--machine", machine, "--yes"], capsys)
         assert code == 0, err
         assert f"firmware settings: {rows} compared with the machine file, 0 disagree" in caplog.text
+
+
+def test_status_after_a_refusal_names_when_it_was_refused(tmp_path, capsys):
+    write_plan(small_plan(n=8, seed=5), tmp_path / "plan.json")
+    journal = tmp_path / "plan.journal"
+    code, _, err = run(["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring", "--port",
+                        "sim://?machine=grbl-ring&set=%24100%3D40", "--yes", "--journal", str(journal)], capsys)
+    assert code == 1 and "nothing was moved or wound" in err
+    code, out, err = run(["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring", "--journal", str(journal),
+                          "--status"], capsys)
+    assert code == 0, err
+    started = next(x for x in out.splitlines() if x.startswith("started: "))
+    first, last = started[len("started: "):].split("; last record: ")
+    assert last == first                     # the start record is the last one (was "?")

@@ -11,6 +11,12 @@ without an answer.  A command is answered ``ok`` once it has been *processed*:
 ``G28`` only when motion has finished, ``G4`` after its dwell; while a command
 blocks, ``echo:busy: processing`` comes every 2 s.  Unknown commands get
 ``echo:Unknown command: "<cmd>"`` and ``ok``.
+
+``M0``/``M1`` (a spool change in stringbot's G-code) wait, once motion has
+finished, for the operator: on the machine the click of its LCD, here ``M108``
+(Break and Continue), which Marlin's emergency parser acts on as it arrives,
+ahead of the queue; meanwhile ``echo:busy: paused for user`` comes every 2 s.
+With ``S<seconds>`` or ``P<ms>`` the wait also ends after that time.
 """
 
 import enum
@@ -55,6 +61,8 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
         self.queue = deque()          # (command, silent, line count, ignore) checked, waiting to run
         self._raw = bytearray()
         self._busy_at = None          # next keepalive while a command blocks
+        self._user_wait = False       # M0/M1 waits for the operator (M108, the LCD's click)
+        self._ep_tail = b""           # the emergency parser's last bytes (M108 split across writes)
         self._boot(wipe=True)
 
     # ---- bytes in -------------------------------------------------------------------------------
@@ -66,17 +74,22 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
                 self._rx.append(c)
             else:
                 self.dropped_bytes += 1
+        seen = self._ep_tail + bytes(data).upper()
+        self._ep_tail = seen[-3:]
+        if b"M108" in seen and self._user_wait:     # the emergency parser: acts before the queue
+            log.info("M108: the operator continues")
+            self._user_wait = False
         self._pump()            # one write arrives as one USB packet: Marlin sees it all at once
 
     def _event_times(self):
         times = super()._event_times()
-        if self._busy_at is not None:
+        if self._busy_at is not None and not self._user_wait:   # waiting for the operator: no event
             times.append(max(self._busy_at - self.now, 0.0))
         return times
 
     def _after_run(self):
-        if self._busy_at is not None and self._task is not None and self.now >= self._busy_at - EPS:
-            self._emit(mc.BUSY_PROCESSING)
+        while self._busy_at is not None and self._task is not None and self.now >= self._busy_at - EPS:
+            self._emit(mc.PAUSED_FOR_USER if self._user_wait else mc.BUSY_PROCESSING)
             self._busy_at += mc.KEEPALIVE_SECONDS
 
     # ---- the main loop ------------------------------------------------------------------------------
@@ -286,7 +299,24 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
     def _ok(self, p):
         return 0
 
-    _M17 = _M18 = _M84 = _M82 = _M83 = _M111 = _M117 = _T0 = _ok
+    _M17 = _M18 = _M84 = _M82 = _M83 = _M108 = _M111 = _M117 = _T0 = _ok
+
+    def _M0(self, p):
+        """Wait for the operator (M108), or ``S`` seconds / ``P`` ms, once motion has finished."""
+        while not self.motion.empty:
+            yield lambda: self.motion.empty
+        timed = p.get("S") is not None or p.get("P") is not None
+        self._user_wait = True
+        if timed:
+            self._timer = self.now + (p["S"] if p.get("S") is not None else p["P"] / 1000.0)
+            yield lambda: not self._user_wait or self.now >= self._timer - EPS
+            self._timer = None
+        else:
+            yield lambda: not self._user_wait
+        self._user_wait = False
+        return 0
+
+    _M1 = _M0
 
     def _M110(self, p):
         if p.get("N") is not None:
@@ -340,6 +370,7 @@ class MarlinEmulator(MarlinSettingsMixin, GcodeFirmware):
         self._rx.clear()
         self._raw.clear()
         self._task, self._timer, self._busy_at = None, None, None
+        self._user_wait = False
         self.last_n = 0
         self.feed = 1500.0
         self.scale = 1.0

@@ -69,7 +69,7 @@ def machines_check_cmd(name, port, apply_fixes_, yes):
         for line in report_lines(report):
             click.echo(line)
         if report.agrees:
-            click.echo(f"all {len(report.rows)} settings agree with the machine file")
+            click.echo(_agree_line(report))
             return
         fixes = report.fixes
         _explain(report, fixes)
@@ -84,8 +84,7 @@ def machines_check_cmd(name, port, apply_fixes_, yes):
         if not fixes:
             _fail("nothing to send: what disagrees is fixed in the machine file or the build (see above)")
         click.echo(f"{PERSISTENCE[report.kind]}.")
-        if not yes and not click.confirm(f"Send these {len(fixes)} line(s) to the machine?", default=False,
-                                         err=True):
+        if not yes and not _confirm(f"Send these {len(fixes)} line(s) to the machine?"):
             _fail("nothing was sent")
         apply_fixes(link, machine, fixes)
         after = check_link(link, machine, fresh=True)
@@ -95,9 +94,34 @@ def machines_check_cmd(name, port, apply_fixes_, yes):
         if not after.agrees:
             _explain(after, after.fixes)
             _fail(f"{len(after.disagreements)} setting(s) still disagree after the fixes")
-        click.echo(f"all {len(after.rows)} settings agree with the machine file")
+        click.echo(_agree_line(after))
     finally:
         link.close()
+
+
+def _confirm(question):
+    """The operator's yes; standard input that ended (no terminal) is bad input, not exit 130."""
+    from ..errors import BadInput
+
+    try:
+        return click.confirm(question, default=False, err=True)
+    except click.Abort as exc:
+        if isinstance(exc.__context__, EOFError):
+            click.echo("", err=True)
+            raise BadInput("--apply asks before sending, but standard input ended (not a terminal); "
+                           "nothing was sent: run in a terminal, or add --yes") from None
+        raise
+
+
+def _agree_line(report):
+    """"all N settings agree", naming what was not checked (the machine file does not say)."""
+    from ..links.settings_rules import Verdict
+
+    unchecked = [r.setting for r in report.rows if r.verdict is Verdict.UNCHECKED]
+    if not unchecked:
+        return f"all {len(report.rows)} settings agree with the machine file"
+    return (f"{len(report.rows) - len(unchecked)} of {len(report.rows)} settings agree with the machine file; "
+            f"not checked (the machine file does not say): {', '.join(unchecked)}")
 
 
 def _explain(report, fixes):

@@ -109,7 +109,11 @@ Examples:
               help="Ring diameter (a square frame's side), mm: the thread length in metres.")
 @click.option("--machine", default=None, help="Take the ring diameter from this machine (name or .toml).")
 def pins_cmd(plan, output, diameter_mm, machine):
-    """Write the pin list of PLAN for winding by hand: step, pin, wrap direction."""
+    """Write the pin list of PLAN for winding by hand: step, pin, wrap direction.
+
+    A colour plan's list goes thread by thread, saying before each which colour to tie on at
+    which pin (the CSV has a color column).
+    """
     from ..motion.pins import format_csv, format_txt, pin_list
     from ..planner.plan_file import read_plan
 
@@ -121,8 +125,6 @@ def pins_cmd(plan, output, diameter_mm, machine):
     check_output_path(output, what="pin list", allow_stdout=True)      # before the work
     check_not_same_file(output, plan, what="pin list", source_what="plan")
     p = read_plan(plan)
-    from ..planner.plan_file import require_one_layer
-    require_one_layer(p, "stringbot pins")
     size, size_from, mach = _frame_size(p, diameter_mm, machine)
     thread_m = None
     if mach is not None:
@@ -149,7 +151,8 @@ Examples:
 @click.option("--size", type=click.IntRange(64, 2000), default=400, show_default=True, help="Side in pixels.")
 @click.option("--fps", type=click.FloatRange(1, 60), default=10.0, show_default=True, help="Frames per second.")
 def animate_cmd(plan, output, frames, size, fps):
-    """Animate PLAN: the painting growing in winding order, newest thread in red."""
+    """Animate PLAN: the painting growing in winding order, newest thread in red (a colour plan:
+    each thread in its colour over the board, the newest in the opposite colour)."""
     from ..planner.frames import Mp4Unavailable, gif_bytes, growth_frames, mp4_bytes
     from ..planner.plan_file import read_plan
 
@@ -162,9 +165,11 @@ def animate_cmd(plan, output, frames, size, fps):
     check_output_path(output, what="animation")
     check_not_same_file(output, plan, what="animation", source_what="plan")
     p = read_plan(plan)
-    from ..planner.plan_file import require_one_layer
-    require_one_layer(p, "stringbot animate")
-    images = [f for f, _ in growth_frames(p, frames=frames, size=size)]
+    if p.is_mono:
+        images = [f for f, _ in growth_frames(p, frames=frames, size=size)]
+    else:                                   # a colour plan: each layer in its colour, later ones on top
+        from ..planner.colour_frames import colour_growth_frames
+        images = [f for f, _ in colour_growth_frames(p, frames=frames, size=size)]
     try:
         data = gif_bytes(images, fps=fps) if ext == ".gif" else mp4_bytes(images, fps=fps)
     except Mp4Unavailable as exc:

@@ -45,7 +45,8 @@ class _Lines(click.ParamType):
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
 @click.option("--fit", is_flag=True, help="Paint the whole picture, letterboxed on the board, not its centre.")
 @click.option("--start-pin", type=int, default=None,
-              help="First pin (0 is at the top, numbered clockwise) [default: 0; greedy: pins / 4, ThreadTone's].")
+              help="First pin (0 is at the top, numbered clockwise) [default: residual: an end of its best chord; "
+                   "fitness: 0; greedy: pins / 4, ThreadTone's].")
 @click.option("--size", type=int, default=None, help="Working size in pixels [default: 401; greedy: 1001, ThreadTone's].")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
               help="Chords to draw; auto: residual stops when another thread would not improve the picture as "

@@ -5,7 +5,6 @@ import sys
 import click
 
 from ..errors import BadInput, Interrupted, MachineFailure
-from ..links.settings_check import SettingsDisagree
 from . import cli
 from .progress import fmt_s as _fmt_s
 
@@ -34,7 +33,8 @@ def _resume_command(plan, machine_name, port, journal):
 @click.option("--from-step", type=click.IntRange(min=1), default=None,
               help="Restart from step N (numbered from 1) after fixing something by hand.")
 @click.option("--head-side", type=click.Choice(["in", "out"]), default=None,
-              help="On resume, where the thread head is when the journal cannot know.")
+              help="On resume, where the thread head is when the journal cannot know: fully IN or fully "
+                   "OUT (part way: resume without --yes to be guided).")
 @click.option("--status", "show_status", is_flag=True,
               help="Show the journal's state and exit (without --port: the real winding's journal if any).")
 @click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
@@ -71,6 +71,8 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     again = _resume_command(plan, machine_name, port, journal)
     ask = _Asking()
 
+    # the settings check is imported here, not at the top: `stringbot plan` does not need it
+    from ..links.settings_check import SettingsDisagree
     from .progress import WindProgress
 
     progress = WindProgress(every=progress_every).start()

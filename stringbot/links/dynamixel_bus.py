@@ -5,7 +5,9 @@
 two): ping, control-table reads and writes by item name, reboot, clearing the
 turn count, sync-written goals and one sync-read poll of Torque Enable ..
 Present Position.  A failed exchange (``COMM_RX_TIMEOUT``, ``COMM_RX_CORRUPT``,
-...) is retried, then becomes one line naming the servo, the operation and
+...) is retried, each retry waiting longer for the answer (:data:`RETRY_GRACE_MS`: a
+servo, a USB adapter or a simulator on a loaded computer may answer late, and a
+retry that waits no longer than the first attempt would miss it the same way), then becomes one line naming the servo, the operation and
 the ``COMM_*`` result; a status packet's error field and the Hardware Error
 Status are reported by name.  The link above (:mod:`.dynamixel`) gives the
 bus a ``fail(message) -> Exception`` that adds the step and the pin.
@@ -29,6 +31,11 @@ CT = dx.CONTROL_TABLE
 #: One sync read per poll covers Torque Enable (64) .. Present Position (132..135).
 POLL_START = CT["Torque Enable"].address
 POLL_LENGTH = CT["Present Position"].address + 4 - POLL_START
+#: Extra milliseconds each attempt waits for an answer beyond the SDK's own packet timeout
+#: (about 35 ms): the first attempt none, then more (worst case 0.75 s more before a failure).
+RETRY_GRACE_MS = (0.0, 50.0, 200.0, 500.0)
+#: After an exchange that needed retries: how long to wait for late answers before dropping them.
+LATE_ANSWER_S = 0.05
 _COMM = {getattr(sdk, name): name for name in dir(sdk) if name.startswith("COMM_")}
 _HINTS = {sdk.COMM_RX_TIMEOUT: "it does not answer: check its power, cable, id and baud rate",
           sdk.COMM_RX_CORRUPT: "its answers arrive corrupted: check the cable and termination",
@@ -37,9 +44,6 @@ _HINTS = {sdk.COMM_RX_TIMEOUT: "it does not answer: check its power, cable, id a
 
 #: What the SDK's port raises when the adapter or its cable is gone (pyserial, the OS, termios).
 PORT_ERRORS = (serial.SerialException, OSError, termios.error)
-#: Extra milliseconds a retried exchange waits for its answer, beyond the SDK's own timeout
-#: (about 35 ms): a late answer (a loaded host, a busy adapter) is taken, not given up on.
-RETRY_SLACK_MS = (0.0, 30.0, 120.0, 400.0)
 
 
 def _first_line(exc):
@@ -60,13 +64,16 @@ def poll_field(data, name):
 
 
 class _PatientPortHandler(sdk.PortHandler):
-    """The SDK's port handler with ``slack_ms`` added to every packet timeout (see :data:`RETRY_SLACK_MS`)."""
+    """The SDK's port handler; its packet timeouts are longer by ``grace_ms`` (set per attempt)."""
 
-    slack_ms = 0.0
+    grace_ms = 0.0
 
     def setPacketTimeout(self, packet_length):
         super().setPacketTimeout(packet_length)
-        self.packet_timeout += self.slack_ms
+        self.packet_timeout += self.grace_ms
+
+    def setPacketTimeoutMillis(self, msec):
+        super().setPacketTimeoutMillis(msec + self.grace_ms)
 
 
 class _UrlPortHandler(_PatientPortHandler):
@@ -135,11 +142,12 @@ class ServoBus:
 
     # ---- exchanges ----------------------------------------------------------------------------
     def _call(self, servo_id, what, call, *args, attempt=0):
-        """One SDK call; the port raising (a pulled cable, a dead adapter) becomes one failure
-        naming the operation, and every later exchange fails at once with the same reason."""
+        """One SDK call, waiting longer for its answer on a retry (:data:`RETRY_GRACE_MS`); the
+        port raising (a pulled cable, a dead adapter) becomes one failure naming the operation,
+        and every later exchange fails at once with the same reason."""
         if self.lost is not None:
             raise self.fail(self.lost)
-        self.port.slack_ms = RETRY_SLACK_MS[min(attempt, len(RETRY_SLACK_MS) - 1)]
+        self._grace(attempt)
         try:
             return call(*args)
         except PORT_ERRORS as exc:
@@ -149,22 +157,48 @@ class ServoBus:
             log.debug("port error", exc_info=True)
             raise self.fail(self.lost) from None
         finally:
-            self.port.slack_ms = 0.0
+            self.port.grace_ms = 0.0
 
-    def _retry(self, servo_id, what, call, *args):
-        """Run an SDK call whose result is ``out[-2]``; retry COMM failures; return its output."""
+    def _retry(self, servo_id, what, call, *args, expect=None):
+        """Run an SDK call whose result is ``out[-2]``; retry COMM failures; return its output.
+
+        ``expect``: the number of data bytes ``out[0]`` must hold (a read); an answer of
+        another length is a late answer to an earlier request, and is retried.
+        """
         for attempt in range(self.retries + 1):
             self.port.is_using = False        # an interrupted exchange must not leave the port "busy"
-            out = self._call(servo_id, what, call, *args, attempt=attempt)
+            try:
+                out = self._call(servo_id, what, call, *args, attempt=attempt)
+                result = out[-2] if isinstance(out, tuple) else out
+            except IndexError:                    # the SDK parsing a short (late) answer as this one's
+                self.port.is_using = False
+                out, result = None, sdk.COMM_RX_CORRUPT
             self.packets += 1
-            result = out[-2] if isinstance(out, tuple) else out
+            if result == sdk.COMM_SUCCESS and expect is not None and len(out[0]) != expect:
+                result = sdk.COMM_RX_CORRUPT      # an answer of another length: not this request's
             if result == sdk.COMM_SUCCESS:
+                if attempt:
+                    self._drop_late_answers()
                 return out
             self.retried += 1
-            # a first ping may go unanswered while a port settles: not worth a warning
-            log.log(logging.INFO if what == "ping" else logging.WARNING, "%s: %s %s (attempt %d of %d)",
+            # a first ping may go unanswered while a port settles, a first answer may come late
+            # (the retry waits longer): not worth a warning
+            log.log(logging.INFO if what == "ping" or attempt == 0 else logging.WARNING, "%s: %s %s (attempt %d of %d)",
                     self.name(servo_id), what, comm_name(result), attempt + 1, self.retries + 1)
         raise self.comm_failure(servo_id, what, result)
+
+    def _drop_late_answers(self):
+        """After an exchange that needed retries, the answers to the attempts that timed out
+        may still arrive: wait for them and drop them, so the next request does not take one
+        of them for its own answer (Protocol 2.0 status packets carry no sequence number)."""
+        import time
+        time.sleep(LATE_ANSWER_S)
+        self.port.is_using = False
+        if self.port.ser is not None:
+            self.port.clearPort()
+
+    def _grace(self, attempt):
+        self.port.grace_ms = RETRY_GRACE_MS[min(attempt, len(RETRY_GRACE_MS) - 1)]
 
     def comm_failure(self, servo_id, what, result):
         hint = _HINTS.get(result, self.ph.getTxRxResult(result))
@@ -196,10 +230,11 @@ class ServoBus:
     def read(self, servo_id, name, *, alert_ok=False):
         """Read item ``name``; the Alert bit (a hardware error) fails it unless ``alert_ok``."""
         f = CT[name]
-        call = {1: self.ph.read1ByteTxRx, 2: self.ph.read2ByteTxRx, 4: self.ph.read4ByteTxRx}[f.size]
         what = f"reading {name}"
-        value, _, error = self._retry(servo_id, what, call, self.port, servo_id, f.address)
+        data, _, error = self._retry(servo_id, what, self.ph.readTxRx, self.port, servo_id, f.address, f.size,
+                                     expect=f.size)
         self._checked(servo_id, what, error, alert_ok=alert_ok or name == "Hardware Error Status")
+        value = int.from_bytes(bytes(data), "little")
         if f.signed and value >= 1 << (8 * f.size - 1):
             value -= 1 << (8 * f.size)
         return value
@@ -239,7 +274,7 @@ class ServoBus:
             [servo_id] = ids
             what = "polling its position"
             data, _, error = self._retry(servo_id, what, self.ph.readTxRx, self.port, servo_id,
-                                         POLL_START, POLL_LENGTH)
+                                         POLL_START, POLL_LENGTH, expect=POLL_LENGTH)
             self.packets -= 1
             self.polls += 1
             self._checked(servo_id, what, error, alert_ok=True)   # the caller reads the error status
@@ -251,11 +286,16 @@ class ServoBus:
             self.port.is_using = False
             result = self._call(ids[0], "polling the positions", group.txRxPacket, attempt=attempt)
             self.polls += 1
-            if result == sdk.COMM_SUCCESS:
+            if result == sdk.COMM_SUCCESS and all(len(group.data_dict[i]) == POLL_LENGTH for i in ids):
+                if attempt:
+                    self._drop_late_answers()
                 return {servo_id: bytes(group.data_dict[servo_id]) for servo_id in ids}
+            if result == sdk.COMM_SUCCESS:
+                result = sdk.COMM_RX_CORRUPT
             self.retried += 1
             culprit = next((i for i in ids if not group.data_dict.get(i)), ids[0])
-            log.warning("%s: polling %s (attempt %d of %d)", self.name(culprit), comm_name(result),
+            log.log(logging.INFO if attempt == 0 else logging.WARNING,
+                    "%s: polling %s (attempt %d of %d)", self.name(culprit), comm_name(result),
                         attempt + 1, self.retries + 1)
             for servo_id in ids:
                 group.data_dict[servo_id] = []

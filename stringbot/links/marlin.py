@@ -148,6 +148,7 @@ class MarlinLink(LineLink):
     # ---- state -----------------------------------------------------------------------
     def status(self, timeout=None):
         """``M114``: the position Marlin believes in (no run state: Marlin has none to report)."""
+        self.last_position = None       # never a report from before this M114 (a stale held position)
         self.command("M114", timeout=timeout)
         return self._status()
 
@@ -211,8 +212,8 @@ class MarlinLink(LineLink):
     def _send(self, text, where, timeout):
         n = self.line_number
         self._history[n] = text
-        self._transmit(n, text, where)
-        self.line_number = n + 1
+        self.line_number = n + 1        # first: a Ctrl-C during the write must not reuse n (Marlin
+        self._transmit(n, text, where)  # would take the next line for n's resend, unanswered)
         answered = self._await(n, where, timeout, motion=waits_on_motion(text))
         self._history.pop(n - 8, None)
         if not answered and text == self.sync_line:

@@ -6,6 +6,11 @@ arrives on the pin's lower-numbered side and leaves on its higher-numbered
 side), so that it runs round the outside of the pin without crossing itself;
 ``either`` where both ways are alike (the thread comes back the way it came).
 
+A colour plan lists its layers one after the other, each a thread of its own:
+the text says before a layer's first step which thread to cut and which colour
+to tie on at which pin, the CSV has a ``color`` column; a layer's first pin has
+no incoming thread (the thread is tied on there).
+
 On a ring, pins are numbered as the plan numbers them: 0 at the top, clockwise.
 On a square frame the list numbers them along the border from the top-left
 corner, clockwise (0 is the first pin at or after the corner), which is how a
@@ -15,7 +20,7 @@ maker counts nails on a board; the plan's own index is kept in the CSV.
 import csv
 import io
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,10 +43,14 @@ class PinList:
     rows : list of (step, pin, plan_pin, wrap)
         ``step`` from 1; ``pin`` as the list numbers it; ``plan_pin`` the plan's index.
     header : list of (label, text)
+    layers : list of (first_row, color, name, tie_pin)
+        A colour plan's layers (empty for a one-thread plan): the index in ``rows`` of each
+        layer's first step, its colour, its name and the pin to tie it on at.
     """
 
     rows: list
     header: list
+    layers: list = field(default_factory=list)
 
 
 def square_offset(pins):
@@ -56,13 +65,25 @@ def square_offset(pins):
     return int(np.argmin(s))
 
 
-def thread_metres(plan, size_mm):
-    """Thread along the chords, pin centre to pin centre, for a frame ``size_mm`` across (m)."""
+def thread_metres(plan, size_mm, sequence=None):
+    """Thread along the chords, pin centre to pin centre, for a frame ``size_mm`` across (m):
+    of ``sequence`` (one layer), or of every layer of ``plan`` (no chord between two layers)."""
+    if sequence is None:
+        return sum(thread_metres(plan, size_mm, lay.sequence) for lay in plan.layers)
     xy = np.asarray(plan.pin_xy, dtype=float)
-    seq = np.asarray(plan.sequence, dtype=int)
+    seq = np.asarray(sequence, dtype=int)
     if len(seq) < 2:
         return 0.0
     return float(np.linalg.norm(xy[seq[1:]] - xy[seq[:-1]], axis=1).sum()) * size_mm / 1000.0
+
+
+def _color_name(color):
+    try:
+        from ..planner.palette import color_name
+        name = color_name(color)
+    except Exception:  # noqa: BLE001 -- a name is a courtesy
+        name = color
+    return color if name == color else f"{name} ({color})"
 
 
 def pin_list(plan, *, plan_name="plan", size_mm=None, size_from="", thread_m=None):
@@ -89,14 +110,17 @@ def pin_list(plan, *, plan_name="plan", size_mm=None, size_from="", thread_m=Non
         raise BadInput("plan is a disconnected chord set (field 'connected' is false); expected a "
                        "connected plan with a 'sequence' (plan again without --disconnected)")
     n = plan.pins
-    seq = [int(p) for p in plan.sequence]
     offset = square_offset(n) if plan.frame == "square" else 0
-    rows = []
-    for k, pin in enumerate(seq):
-        prev = seq[k - 1] if k > 0 else None
-        nxt = seq[k + 1] if k + 1 < len(seq) else None
-        rows.append((k + 1, (pin - offset) % n, pin, _WRAP[wrap_direction(prev, pin, nxt, n)]))
-    lines = len(seq) - 1
+    rows, layers = [], []
+    for lay in plan.layers:
+        seq = [int(p) for p in lay.sequence]
+        if len(plan.colors) > 1:
+            layers.append((len(rows), lay.color, _color_name(lay.color), (seq[0] - offset) % n))
+        for k, pin in enumerate(seq):
+            prev = seq[k - 1] if k > 0 else None
+            nxt = seq[k + 1] if k + 1 < len(seq) else None
+            rows.append((len(rows) + 1, (pin - offset) % n, pin, _WRAP[wrap_direction(prev, pin, nxt, n)]))
+    lines = sum(max(len(lay.sequence) - 1, 0) for lay in plan.layers)
     if plan.frame == "square":
         numbering = (f"{n} on the border of a square frame, numbered from the top-left corner, clockwise "
                      f"(seen from the front); pin 0 is the plan's pin {offset}")
@@ -111,14 +135,24 @@ def pin_list(plan, *, plan_name="plan", size_mm=None, size_from="", thread_m=Non
     else:
         thread = (f"{plan.stats.get('thread_diameters', 0):.1f} frame diameters; give --diameter-mm "
                   "or --machine for metres")
+    first = "the first thread" if layers else "the thread"
     header = [("plan", f"{plan_name} ({plan.method}, sha256 {plan.sha256()[:12]})"),
               ("pins", numbering),
-              ("lines", f"{lines} ({len(seq)} pins to go round, the first included: tie the thread on "
+              ("lines", f"{lines} ({len(rows)} pins to go round, the first included: tie {first} on "
                         f"at pin {rows[0][1]} first)"),
-              ("thread", thread),
+              ("thread", thread)]
+    if layers:
+        ends = [a for a, *_ in layers[1:]] + [len(rows)]
+        each = []
+        for k, ((a, color, name, tie), b) in enumerate(zip(layers, ends)):
+            metres = f", about {thread_metres(plan, size_mm, plan.layers[k].sequence):.1f} m" if size_mm else ""
+            each.append(f"{k + 1} {name}: steps {a + 1}-{b}, tie on at pin {tie}{metres}")
+        header.append(("threads", f"{len(layers)}, wound in this order (later ones lie on top): "
+                                  + "; ".join(each)))
+    header += [
               ("wrap", "cw: round the pin clockwise, ccw: counter-clockwise (seen from the front), "
                        "either: both alike; always round the outside of the pin")]
-    return PinList(rows=rows, header=header)
+    return PinList(rows=rows, header=header, layers=layers)
 
 
 def format_txt(pl, *, page_steps=PAGE_STEPS, title="stringbot pin list"):
@@ -133,7 +167,12 @@ def format_txt(pl, *, page_steps=PAGE_STEPS, title="stringbot pin list"):
         lines = list(head) if p == 0 else [f"{title}, continued"]
         lines += ["", f"page {p + 1} of {npages}: steps {chunk[0][0]}-{chunk[-1][0]} of {total}", "",
                   f"{'step':>6}  {'pin':>5}  wrap   done"]
+        starts = {a: (k, name, tie) for k, (a, _c, name, tie) in enumerate(pl.layers)}
         for step, pin, _plan_pin, wrap in chunk:
+            if step - 1 in starts:
+                k, name, tie = starts[step - 1]
+                cut = "" if k == 0 else "cut the thread; "
+                lines.append(f"        -- thread {k + 1} of {len(pl.layers)}: {cut}tie {name} on at pin {tie} --")
             lines.append(f"{step:>6}  {pin:>5}  {wrap:<6} [ ]")
         pages.append("\n".join(lines) + "\n")
     return "\f".join(pages)
@@ -145,6 +184,12 @@ def format_csv(pl):
     for label, text in pl.header:
         buf.write(f"# {label}: {text}\n")
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["step", "pin", "plan_pin", "wrap"])
-    w.writerows(pl.rows)
+    if not pl.layers:
+        w.writerow(["step", "pin", "plan_pin", "wrap"])
+        w.writerows(pl.rows)
+        return buf.getvalue()
+    w.writerow(["step", "pin", "plan_pin", "wrap", "color"])
+    ends = [a for a, *_ in pl.layers[1:]] + [len(pl.rows)]
+    for (a, color, _name, _tie), b in zip(pl.layers, ends):
+        w.writerows(row + (color,) for row in pl.rows[a:b])
     return buf.getvalue()

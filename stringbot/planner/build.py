@@ -158,7 +158,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         The knobs (see ``stringbot plan --help`` and docs/planner.md).  ``size``
         None: 1001 for greedy (ThreadTone's own), else 401; ``gray`` None:
         luminance for greedy (ThreadTone's), else decolor.  ``start_pin`` None:
-        ``pins // 4`` for greedy (ThreadTone's pin 0 faces right), else 0;
+        ``pins // 4`` for greedy (ThreadTone's pin 0 faces right), the pin of
+        the best chord for residual (recorded in the plan), else 0;
         greedy's default crop is ThreadTone's square (whole-pixel offsets).
     style : {"auto", "detail", "fill"} or None
         Fitness only: which setting of beta, gamma and T (see the module
@@ -198,6 +199,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         size = GREEDY_SIZE if method == "greedy" else DEFAULTS["size"]
     if gray is None:  # ThreadTone grays by luminance (cv2.COLOR_BGR2GRAY), the paper by decolorization
         gray = "luminance" if method == "greedy" else "decolor"
+    auto_start = start_pin is None and method == "residual"  # residual: the pin of the best chord
     if start_pin is None:  # ThreadTone starts at its pin 0, which faces right: our pin pins / 4
         start_pin = pins // 4 if method == "greedy" else 0
     if method == "greedy" and crop is None and not fit and picture is None:
@@ -245,7 +247,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     chords = None
     if method == "residual":
         seq, extra = _residual_run(space, pic, mask, weights, lines if lines == "auto" else k, model,
-                                   start_pin=start_pin, refine=refine)
+                                   start_pin=None if auto_start else start_pin, refine=refine)
+        params["start_pin"] = int(seq[0])
         params.update(refine=refine, thread_px=round(model.width_px(size), 4))
         stats.update(extra)
     elif method == "greedy":

@@ -66,20 +66,25 @@ def line_samples(r0, c0, r1, c1, size, *, nearest=False, spacing=1.0):
     dr, dc = r1 - r0, c1 - c0
     n = np.maximum((np.hypot(dr, dc) / spacing).astype(np.int64), 1)
     starts = np.concatenate([[0], np.cumsum(n)[:-1]])
-    seg = np.repeat(np.arange(len(n), dtype=np.int32), n)
-    t = np.arange(int(n.sum()), dtype=np.float32)
-    t -= np.repeat(starts.astype(np.float32), n)
+    # one row per chord, padded to the longest (fewer gathers than repeating per point); the points kept
+    # are, in order, those of np.linspace
     inv = (1.0 / np.maximum(n - 1, 1)).astype(np.float32)  # linspace: both pins included
-    t *= inv[seg]
+    k = np.arange(int(n.max()), dtype=np.float32)
+    keep = k[None, :] < n[:, None]
+    t = k[None, :] * inv[:, None]
     rnd = np.rint if nearest else np.floor
     # float32 is exact enough here: coordinates < 4096, steps of at least 1/4096
-    rr = rnd(np.float32(r0) + t * dr.astype(np.float32)[seg])
-    cc = rnd(np.float32(c0) + t * dc.astype(np.float32)[seg])
+    rr = t * dr.astype(np.float32)[:, None]
+    rr += np.float32(r0)
+    rnd(rr, out=rr)
+    cc = t * dc.astype(np.float32)[:, None]
+    cc += np.float32(c0)
+    rnd(cc, out=cc)
     np.clip(rr, 0, size - 1, out=rr)
     np.clip(cc, 0, size - 1, out=cc)
     rr *= size
     rr += cc
-    return starts, rr.astype(np.int32)
+    return starts, rr[keep].astype(np.int32)
 
 
 def cv_half_width(thickness):

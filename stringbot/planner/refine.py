@@ -33,7 +33,7 @@ __all__ = ["refine_sequence"]
 def _chord_score(canvas, pin_lines, a):
     """Mean residual of every chord from pin ``a``: ``(others, scores)``."""
     others, pix, starts, counts = pin_lines.get_with_counts(a)
-    return others, np.add.reduceat(canvas.slope().take(pix), starts) / counts
+    return others, np.add.reduceat(canvas.slope().take(pix), starts) / counts * canvas.gain_row(a, others)
 
 
 def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):
@@ -85,8 +85,9 @@ def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):
             continue
         a, p, c = seq[i], seq[k], seq[j]
         old = [(a, p), (p, c)]
-        canvas.apply(chords_out=old)
-        base = canvas.delta(chords_in=old)  # the error change of putting them back: the bar to beat
+        # lifted, so that the scores see the picture without them; putting them back would change the
+        # error by minus what lifting did: the bar to beat
+        base = -canvas.apply(chords_out=old)
         best, best_pins = base, None
         oa, sa = _chord_score(canvas, pin_lines, a)
         oc, sc = _chord_score(canvas, pin_lines, c)

@@ -10,6 +10,16 @@ saturates, two threads on one spot are not twice as dark).  The error is
 ``E = sum w (t - D)^2`` (``w``: 1 in the frame, up to 2 on important pixels,
 0 outside).
 
+*A chord drawn again* lies on the first thread between the same two pins:
+it covers only what the threads already there leave uncovered *at the
+thread's own scale*, where two threads on one spot are not twice as dark.
+The ``k``-th copy of a chord adds :func:`repeat_gains` ``[k]`` times one
+thread's coverage: the thread model's own cap, measured on a canvas whose
+pixel is the thread's width (1, 0.8, 0.3, 0.18, ... : a second thread beside
+the first still darkens, the tenth hardly at all).  At the working size the
+copies fall on the same pixels, so without this the planner would believe a
+chord drawn 20 times is 20 times as dark and pile thread there.
+
 *Choosing* (image-space error diffusion).  From the current pin, each
 chord's score is the mean, over points spaced evenly along it (``int(hypot)``
 of them, so no direction is favoured), of ``w (t - D) exp(-S)``: how much
@@ -39,11 +49,42 @@ from .thread import SegmentStamp
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Canvas", "residual_sequence", "PATIENCE"]
+__all__ = ["Canvas", "residual_sequence", "best_start", "repeat_gains", "PATIENCE"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
 MAX_AUTO = 60_000
+#: copies of one chord whose gain :func:`repeat_gains` measures; later copies gain as the last
+REPEATS = 24
+_GAINS = None
+
+
+def repeat_gains():
+    """Coverage added by the k-th copy of a chord (k = 0, 1, ...), in units of one thread's coverage.
+
+    Measured with the thread model (:mod:`stringbot.planner.thread`) on a
+    canvas whose pixel is as wide as the thread, where the coverage is capped
+    at 1: ``sum min((k + 1) c, 1) - sum min(k c, 1)`` over the footprint ``c``
+    of one thread, divided by ``sum c``, averaged over a few directions.
+
+    Returns
+    -------
+    ndarray of float64, shape (REPEATS,)
+        ``gains[0] == 1``, non-increasing, > 0.
+    """
+    global _GAINS
+    if _GAINS is None:
+        size = 256
+        stamp = SegmentStamp(size, 1.0)
+        k = np.arange(REPEATS + 1, dtype=np.float64)[:, None]
+        curves = []
+        for ang in np.linspace(0.0, np.pi / 4, 7):
+            d = np.array([np.cos(ang), np.sin(ang)]) * 0.45
+            _, c = stamp(0.5 - d, 0.5 + d)
+            curves.append(np.minimum(k * c[None, :], 1.0).sum(axis=1) / c.sum())
+        total = np.mean(curves, axis=0)
+        _GAINS = np.maximum(np.minimum.accumulate(np.diff(total)), 1e-3)
+    return _GAINS
 
 
 class Canvas:
@@ -65,10 +106,17 @@ class Canvas:
         self.t = np.asarray(target, dtype=np.float64).ravel()
         self.w = np.asarray(weights, dtype=np.float64).ravel()
         self.S = np.zeros_like(self.t)
+        self.D = np.zeros_like(self.t)  # tanh(S), kept in step with S
         self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
         self.width = float(width_px)
         self._fp = {}
         self._stamp = SegmentStamp(self.size, self.width)
+        n = len(self.pin_xy)
+        #: how many times each chord is drawn (symmetric); the next copy adds ``gains[uses]`` of a thread
+        self.uses = np.zeros((n, n), dtype=np.int32)
+        self.gains = repeat_gains()
+        self._acc = np.zeros_like(self.t)  # scratch: summed coverage change of several chords
+        self._mark = np.zeros(self.t.size, dtype=np.int64)  # scratch: first occurrence of a pixel
         # a thread's own overlap: half its sum of squared coverage per unit of coverage (measured on a
         # horizontal and a diagonal thread); the second-order cost of its darkness where none is wanted
         kap = []
@@ -91,50 +139,109 @@ class Canvas:
 
     def error(self):
         """``E = sum w (t - D)^2``."""
-        return float(np.sum(self.w * (self.t - np.tanh(self.S)) ** 2))
+        return float(np.sum(self.w * (self.t - self.D) ** 2))
+
+    def gain(self, a, b, copies=0):
+        """Share of a thread's coverage the next copy of chord ``(a, b)`` adds (``copies`` more drawn first)."""
+        return float(self.gains[min(max(int(self.uses[a, b]) + copies, 0), len(self.gains) - 1)])
+
+    def gain_row(self, a, others):
+        """:meth:`gain` of the chords from pin ``a`` to each of ``others`` (an array)."""
+        return self.gains[np.minimum(self.uses[a, others], len(self.gains) - 1)]
+
+    def _changes(self, chords_out, chords_in):
+        """``[(flat, cover * signed gain), ...]`` of removing then adding chords, copies counted."""
+        more, parts = {}, []
+        for chords, sign in ((chords_out, -1), (chords_in, 1)):
+            for a, b in chords:
+                key = (a, b) if a < b else (b, a)
+                n = more.get(key, 0)
+                if sign < 0:
+                    n -= 1
+                parts.append((self.footprint(a, b), sign * self.gain(a, b, n)))
+                more[key] = more.get(key, 0) + sign
+        return parts
+
+    def _union(self, parts):
+        """``(pix, dS)``: the pixels several signed footprints touch (each once) and their coverage change."""
+        acc, mark = self._acc, self._mark
+        for (flat, cov), s in parts:
+            acc[flat] += s * cov  # a footprint has each pixel once
+        flat = np.concatenate([fp[0] for fp, _ in parts])
+        order = np.arange(len(flat))
+        mark[flat] = order
+        pix = flat[mark[flat] == order]
+        dS = acc[pix]
+        acc[pix] = 0.0
+        return pix, dS
 
     def delta(self, chords_out=(), chords_in=()):
         """Exact change of ``E`` if ``chords_out`` were removed and ``chords_in`` added (nothing changes)."""
-        parts = [(self.footprint(a, b), -1.0) for a, b in chords_out] + [(self.footprint(a, b), 1.0)
-                                                                          for a, b in chords_in]
+        parts = self._changes(chords_out, chords_in)
         if not parts:
             return 0.0
         if len(parts) == 1:  # one thread: each pixel once
-            (pix, dS), sign = parts[0]
-            dS = sign * dS
+            (pix, cov), sign = parts[0]
+            dS = sign * cov
         else:
-            flat = np.concatenate([fp[0] for fp, _ in parts])
-            cov = np.concatenate([fp[1] * s for fp, s in parts])
-            pix, inv = np.unique(flat, return_inverse=True)
-            dS = np.bincount(inv, weights=cov, minlength=len(pix))
-        S0 = self.S[pix]
-        S1 = np.maximum(S0 + dS, 0.0)
+            pix, dS = self._union(parts)
+        S1 = np.maximum(self.S[pix] + dS, 0.0)
         t, w = self.t[pix], self.w[pix]
-        return float(np.sum(w * ((t - np.tanh(S1)) ** 2 - (t - np.tanh(S0)) ** 2)))
+        return float(np.sum(w * ((t - np.tanh(S1)) ** 2 - (t - self.D[pix]) ** 2)))
 
     def apply(self, chords_out=(), chords_in=()):
-        """Remove ``chords_out`` and add ``chords_in``; update the slope on the pixels they touch."""
-        touched = []
-        for chords, sign in ((chords_out, -1.0), (chords_in, 1.0)):
+        """Remove ``chords_out`` and add ``chords_in``; update the slope on the pixels they touch.
+
+        Returns
+        -------
+        float
+            The exact change of ``E`` (as :meth:`delta` would have said).
+        """
+        parts = self._changes(chords_out, chords_in)
+        if not parts:
+            return 0.0
+        for chords, sign in ((chords_out, -1), (chords_in, 1)):
             for a, b in chords:
-                flat, cov = self.footprint(a, b)
-                self.S[flat] += sign * cov  # each pixel once per thread
-                touched.append(flat)
-        if touched:
-            pix = touched[0] if len(touched) == 1 else np.unique(np.concatenate(touched))
-            self.S[pix] = np.maximum(self.S[pix], 0.0)
-            d = np.tanh(self.S[pix])
-            slope = 1.0 - d * d  # dD/dS
-            # E's change for coverage c: -2 w (t - D) D' c + w D'^2 c^2; per unit of coverage of a thread
-            # whose own c^2 / c is 2 kappa: 2 w D' ((t - D) - kappa D')
-            self.g[pix] = self.w[pix] * slope * ((self.t[pix] - d) - self.kappa * slope)
+                self.uses[a, b] += sign
+                if a != b:
+                    self.uses[b, a] += sign
+        if len(parts) == 1:
+            (pix, cov), sign = parts[0]
+            dS = sign * cov
+        else:
+            pix, dS = self._union(parts)
+        S = np.maximum(self.S[pix] + dS, 0.0)
+        self.S[pix] = S
+        d = np.tanh(S)
+        d0 = self.D[pix]
+        self.D[pix] = d
+        t, w = self.t[pix], self.w[pix]
+        slope = 1.0 - d * d  # dD/dS
+        # E's change for coverage c: -2 w (t - D) D' c + w D'^2 c^2; per unit of coverage of a thread
+        # whose own c^2 / c is 2 kappa: 2 w D' ((t - D) - kappa D')
+        r = t - d
+        self.g[pix] = w * slope * (r - self.kappa * slope)
+        return float(np.sum(w * (r * r - (t - d0) ** 2)))
 
     def slope(self):
         """The slope field ``w (t - D) dD/dS``, flat float32 (a view: do not modify)."""
         return self.g
 
 
-def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_lines=None, patience=PATIENCE):
+def best_start(canvas, space, pin_lines):
+    """The pin to start from: an end of the chord of highest score on the canvas (the lower pin on a tie)."""
+    g = canvas.slope()
+    best, pin = -np.inf, 0
+    for a in range(space.pins):
+        others, pix, starts, counts = pin_lines.get_with_counts(a)
+        if len(others):
+            top = float((np.add.reduceat(g.take(pix), starts) / counts).max())
+            if top > best:
+                best, pin = top, a
+    return pin
+
+
+def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_lines=None, patience=PATIENCE):
     """Choose a pin sequence by the darkness residual (see the module notes).
 
     Parameters
@@ -145,7 +252,9 @@ def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_line
     lines : int or "auto"
         Chords to draw; ``"auto"``: until ``patience`` chords in a row have not
         brought the error below its lowest, then back to where it was lowest.
-    start_pin, min_loop : int
+    start_pin : int or None
+        None: :func:`best_start`.
+    min_loop : int
     pin_lines : _PinLines, optional
         Shared per-pin line points (built here when not given).
     patience : int
@@ -157,16 +266,18 @@ def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_line
     auto = lines == "auto"
     limit = MAX_AUTO if auto else int(lines)
     pins = pin_lines or _PinLines(space, canvas.size, nearest=True)
+    if start_pin is None:
+        start_pin = best_start(canvas, space, pins)
     seq = [int(start_pin)]
     cur = int(start_pin)
     g = canvas.slope()
     err = best = canvas.error()
-    best_len, chords = 1, []
+    best_len = 1
     for _ in range(limit):
         others, pix, starts, counts = pins.get_with_counts(cur)
         if not len(others):
             break
-        score = np.add.reduceat(g.take(pix), starts) / counts
+        score = np.add.reduceat(g.take(pix), starts) / counts * canvas.gain_row(cur, others)
         for q in seq[-min_loop:]:
             k = int(np.searchsorted(others, q))
             if k < len(others) and others[k] == q:
@@ -175,9 +286,7 @@ def residual_sequence(canvas, space, lines, *, start_pin=0, min_loop=3, pin_line
         if not np.isfinite(score[k]):
             break
         nxt = int(others[k])
-        if auto:
-            err += canvas.delta(chords_in=[(cur, nxt)])
-        canvas.apply(chords_in=[(cur, nxt)])
+        err += canvas.apply(chords_in=[(cur, nxt)])
         seq.append(nxt)
         cur = nxt
         if len(seq) % 200 == 0:

@@ -115,8 +115,11 @@ def _profile(width_px):
     return table.astype(np.float32), reach
 
 
-def _chunks(xy0, xy1, size, width_px):
-    """Footprints in chunks of arrays ``(seg, flat, cover)``; entries with ``cover == 0`` included."""
+def _chunks(xy0, xy1, size, width_px, *, with_seg=True):
+    """Footprints in chunks of arrays ``(seg, flat, cover)``; entries with ``cover == 0`` included.
+
+    ``with_seg=False``: ``seg`` is None (a drawing needs no thread numbers).
+    """
     w = float(width_px)
     if not (math.isfinite(w) and w > 0):
         raise ValueError(f"width_px {width_px!r}; expected a number > 0")
@@ -163,7 +166,10 @@ def _chunks(xy0, xy1, size, width_px):
             cov[(mp < 0) | (mp > size - 1)] = 0.0
             mpi = np.clip(mp, 0, size - 1).astype(np.int64)
             flat = (t * smaj[seg])[:, None] + mpi * smin[seg][:, None]
-            yield (np.broadcast_to(seg[:, None], mp.shape).ravel(), flat.ravel().astype(np.int32), cov.ravel())
+            if with_seg:
+                yield np.broadcast_to(seg[:, None], mp.shape).ravel(), flat.ravel().astype(np.int32), cov.ravel()
+            else:  # flat as it is (np.bincount wants it so)
+                yield None, flat.ravel(), cov.ravel()
         a = b
 
 
@@ -272,7 +278,7 @@ def coverage(chords, pin_xy, *, size, width_px, saturated=True):
     c = np.asarray(chords, dtype=np.int64).reshape(-1, 2)
     xy = np.asarray(pin_xy, dtype=np.float64)
     if len(c):
-        for _, flat, cov in _chunks(xy[c[:, 0]], xy[c[:, 1]], size, width_px):
+        for _, flat, cov in _chunks(xy[c[:, 0]], xy[c[:, 1]], size, width_px, with_seg=False):
             total += np.bincount(flat, weights=cov, minlength=size * size)
     total = total.reshape(size, size).astype(np.float32)
     return saturate(total) if saturated else total

@@ -241,15 +241,18 @@ class GcodeRecovery:
         if side is None and op.choose is not None:
             choices = ["in", "out"] + (["guide"] if op.jog is not None else [])
             side = op.choose(f"The firmware lost its position while {sit.doing()}; the journal puts the "
-                             f"{where_ring}. Look at the thread head: is the eyelet inside the pin circle "
-                             f"(in) or outside (out)?" + (" (guide: jog to a reference instead)"
-                                                          if op.jog is not None else ""), choices)
+                             f"{where_ring}. Look at the thread head: is it fully IN (at its inner "
+                             "position, the eyelet inside the pin circle) or fully OUT (at its outer position)?"
+                             + (" If it stopped part way, answer guide: a head declared IN or OUT where it "
+                                "is not would offset every later head move (guide: jog to a reference)"
+                                if op.jog is not None else ""), choices)
             if side == "guide":
                 return self.guided("the operator asked to be guided")
         if side is None:
             raise BadInput(f"the firmware lost its position while {sit.doing()} and this machine has no switch "
                            f"to find it: look at the machine (the journal puts the {where_ring}) and give "
-                           "--head-side in or --head-side out, or run without --yes to be guided")
+                           "--head-side in or --head-side out if the head stands fully IN or fully OUT; "
+                           "if it stopped part way, run without --yes to be guided")
         head = machine["head.in_mm"] if side == "in" else machine["head.out_mm"]
         if op.head_side is None and op.confirm is not None and not op.confirm(
                 f"Declare the ring at {ring:.3f} deg ({sit.gap_text(ring)} at the station) with the head "

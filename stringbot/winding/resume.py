@@ -57,7 +57,8 @@ def status_lines(job):
     total = state.steps_total
     lines = [f"journal: {state.path}",
              f"plan: {h.get('plan')} (sha256 {str(h.get('plan_sha256'))[:16]}...), machine {h.get('machine')}",
-             f"started: {_fmt_time(h.get('t'))}; last record: {_fmt_time(state.last_time)}"]
+             f"started: {_fmt_time(h.get('t'))}; last record: "
+             f"{_fmt_time(h.get('t') if state.last_time is None else state.last_time)}"]
     nxt = state.next_step
     if state.finished:
         lines.append(f"finished: all {total} steps done")

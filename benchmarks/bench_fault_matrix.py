@@ -1,0 +1,620 @@
+"""The cross-process fault matrix: faults and resumes exactly as a user meets them.
+
+    python benchmarks/bench_fault_matrix.py [--lines 40] [--workers 2] [--machines ...] [--kinds ...]
+                                            [--points 5] [--kills 5] [--seed 7] [--logs DIR]
+
+Every case runs the way a user works, and only that way:
+
+* the simulated machine is ``stringbot simulate --machine NAME --pty PTY --record REC.json
+  --faults SPEC`` in its own process;
+* the host is ``stringbot wind PLAN --machine NAME --port PTY --journal J --yes`` in another, then
+  the same command with ``--resume`` after every stop, until it exits 0 or a limit is reached;
+* a resume that asks where the head is gets its answer from REC.json only, as a person looking at
+  the machine: ``--head-side in|out`` where the head is clearly IN or OUT; a resume that asks for a
+  terminal (the guided way) gets one -- its questions answered and its jogs typed from REC.json by
+  ``tests/scripted_operator.py`` -- and nothing else ever looks at live objects.
+
+A case is judged by the world (the record the simulator writes when it stops): its wraps must
+equal the plan's sequence exactly, with no collision and no crash.  Outcomes:
+
+exact       a run exited 0 and the world is exact
+refused     the last run stopped with a message naming a way out that this operator does not
+            take (the world so far is a prefix of the plan, no collision)
+silent      a run exited 0 but the world differs (must be 0)
+hung        a run did not end within ``--timeout`` seconds (must be 0)
+failed      anything else: a traceback, a state no command leaves (the same stop again and again
+            while following its own advice), a world damaged before a refusal
+
+Fault points come from one fault-free probe per machine (in process, ``sim://``): the line
+numbers of the moves of random steps, by kind of move -- the ring turning to a pin with the
+head IN (``ring``), the head going OUT (``out``), the ring turning with the head OUT
+(``hook``: mid-hook), the sync line that arrives while that turn runs (``hook-sync``) and the
+head coming back IN (``in``: the head OUT).  ``kind@N`` fires as line N arrives;
+``kind@N+0.5`` half way through line N's move (mid-move).  ``uno-*`` cases run a copy of the
+machine file with ``controller.reset_on_open = true`` (the board reboots whenever the port
+opens).  ``dynamixel-ring`` takes its own faults (``power``, ``corrupt``, ``hardware``,
+``silent`` at move N).  ``host-kill`` SIGKILLs the host ``--kills`` times at random moments
+(after a random journaled step count plus a random fraction of a step) and resumes;
+``sim-kill`` SIGKILLs the simulator: it cannot be restarted on the same world (the world is
+not restored from a record), so that case judges only the host's stop (exit 1, a message
+naming the resume, and a journal that claims no pin the world did not wind).
+"""
+
+import argparse
+import json
+import os
+import random
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import Counter, defaultdict
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+STRINGBOT = [sys.executable, "-m", "stringbot.cli"]
+GCODE = ["grbl-ring", "grblhal-ring", "marlin-ring"]
+LINE_KINDS = ["garble", "error", "drop-ok", "reset", "power", "disconnect", "reboot"]
+MID_KINDS = ["reset", "power", "reboot"]                   # kind@N+0.5
+UNO_KINDS = ["error", "disconnect", "reset"]               # with reset_on_open; reset mid-move
+DXL_KINDS = ["power", "corrupt", "hardware", "silent"]
+POINTS = ["ring", "out", "hook", "hook-sync", "in"]
+OUTCOMES = ["exact", "refused", "silent", "hung", "failed"]
+WAYS_OUT = ("--resume", "--head-side", "--from-step", "terminal", "guided", "home", "power",
+            "restart", "run the same command")
+HARDWARE = ("check its power", "cable")      # a stop that names a part to fix by hand
+
+
+@dataclass
+class Case:
+    machine: str                  # name or machine file path
+    label: str                    # machine as shown in the table
+    kind: str                     # as shown in the table (e.g. "reset+0.5", "uno-error")
+    faults: str = ""
+    point: str = ""
+    kills: list = field(default_factory=list)     # signal the host after these journaled step counts
+    signal: int = signal.SIGKILL                  # SIGKILL (a dead computer) or SIGINT (Ctrl-C)
+    sim_kill: int = 0                             # SIGKILL the simulator after this many steps
+
+    @property
+    def name(self):
+        return f"{self.label} {self.kind} {self.faults or self.point}".strip()
+
+
+# ---- the plan and the fault points ------------------------------------------------------------
+
+def make_plan(workdir, machine, lines, picture="camera.png"):
+    path = Path(workdir) / f"plan-{Path(machine).stem}.json"
+    if not path.exists():
+        subprocess.run(STRINGBOT + ["plan", str(ROOT / "examples" / picture), "-o", str(path), "--machine",
+                                    machine, "--lines", str(lines), "--size", "201"],
+                       check=True, capture_output=True, text=True)
+    return path
+
+
+def line_table(plan_path, machine):
+    """A fault-free winding in process: ``[(n, text, head side as line n arrives)]`` as the firmware
+    counted them.  Only chooses the fault points; judging never looks at live objects."""
+    from firmware_protocol.emulators.gcode_base import GcodeFirmware
+    from firmware_protocol.machine import load_machine
+    from firmware_protocol.urlhandler import protocol_sim
+    from stringbot.links import sim_url
+    from stringbot.winding import Job, wind_plan
+
+    table, orig = [], GcodeFirmware._line_faults
+
+    def spy(self, raw):
+        table.append((self.faults.lines + 1, bytes(raw).decode("ascii", "replace").strip(),
+                      self.world.head_side))
+        return orig(self, raw)
+    url = sim_url(machine, record=Path(plan_path).with_suffix(".probe.json"))
+    GcodeFirmware._line_faults = spy
+    try:
+        wind_plan(Job(plan_path, load_machine(machine), port=url,
+                      journal=Path(plan_path).with_suffix(".probe.journal")), confirm=None)
+    finally:
+        GcodeFirmware._line_faults = orig
+        protocol_sim.forget(url)
+    return table
+
+
+def fault_points(table, machine, rng, wanted=POINTS):
+    """One line number per kind of point, each in a different random part of the job."""
+    from firmware_protocol.machine import load_machine
+    m = load_machine(machine)
+    ring_ax, head_ax = m["controller.ring_axis"], m["controller.head_axis"]
+    by_kind = defaultdict(list)
+    for i, (n, text, side) in enumerate(table):
+        words = re.sub(r"^N\d+ |\*\d+$", "", text).split()
+        if not words or words[0] not in ("G1", "G0"):
+            continue
+        axes = {w[0] for w in words[1:]}
+        if axes == {ring_ax} or axes == {ring_ax, "F"}:
+            kind = "hook" if side == "out" else "ring"
+        elif axes <= {head_ax, "F"}:
+            kind = "in" if side == "out" else "out"
+        else:
+            continue
+        by_kind[kind].append(n)
+        if kind == "hook" and i + 1 < len(table):
+            by_kind["hook-sync"].append(table[i + 1][0])
+    points = {}
+    for k, kind in enumerate(wanted):
+        ns = by_kind[kind.split("+")[0]]
+        lo, hi = len(ns) * k // (len(wanted) + 1), len(ns) * (k + 2) // (len(wanted) + 1)
+        points[kind] = ns[rng.randrange(max(lo, 1), max(hi, lo + 2))] if ns else None
+    return points
+
+
+def uno_machine(workdir, name):
+    """A copy of the bundled machine file whose board reboots whenever the port opens."""
+    path = Path(workdir) / f"{name}-uno.toml"
+    text = (ROOT / "machines" / f"{name}.toml").read_text()
+    if re.search(r"^reset_on_open\s*=", text, re.M):
+        text = re.sub(r"^reset_on_open\s*=\s*\w+", "reset_on_open = true", text, flags=re.M)
+    else:
+        text = text.replace("[controller]\n", "[controller]\nreset_on_open = true\n", 1)
+    path.write_text(text)
+    return str(path)
+
+
+# ---- the two processes ------------------------------------------------------------------------
+
+class Simulator:
+    def __init__(self, machine, pty, record, faults=""):
+        self.pty, self.record = Path(pty), Path(record)
+        cmd = STRINGBOT + ["simulate", "--machine", machine, "--pty", str(pty), "--record", str(record)]
+        if faults:
+            cmd += ["--faults", faults]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 30
+        while not self.pty.exists():
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError("the simulator did not start: " + self.proc.stderr.read()[-300:])
+            time.sleep(0.02)
+
+    def wait_port(self, timeout=10.0):
+        """As a user waits for the port to come back (after a pulled cable or a power cut)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and self.proc.poll() is None:
+            if os.path.exists(os.path.realpath(self.pty)):
+                return True
+            time.sleep(0.05)
+        return False
+
+    def look(self):
+        try:
+            return json.loads(self.record.read_text())
+        except (OSError, ValueError):
+            return {}
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        return self.look()
+
+
+def _done(journal):
+    try:
+        return sum(1 for line in Path(journal).read_bytes().splitlines() if b'"kind":"done"' in line)
+    except FileNotFoundError:
+        return 0
+
+
+def run_host(args, timeout, kill_after=None, journal=None, rng=None, sig=signal.SIGKILL):
+    """One ``stringbot wind`` run; ``kill_after``: send it ``sig`` once the journal holds that many
+    steps.  Returns (returncode or "hung" or "killed", stdout, stderr, whether the signal was sent)."""
+    proc = subprocess.Popen(STRINGBOT + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            stdin=subprocess.DEVNULL, text=True)
+    if kill_after is not None:
+        deadline = time.monotonic() + timeout
+        kill_after = max(kill_after, _done(journal) + 1)       # once this run has wound a step
+        while proc.poll() is None and _done(journal) < kill_after and time.monotonic() < deadline:
+            time.sleep(0.002)
+        time.sleep(rng.uniform(0.0, 0.03))
+        sent = proc.poll() is None
+        if sent and sig == signal.SIGKILL:
+            proc.send_signal(signal.SIGKILL)
+            out, err = proc.communicate()
+            return "killed", out, err, True
+        if sent:
+            proc.send_signal(sig)
+    else:
+        sent = False
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        return "hung", out, err, sent
+    return proc.returncode, out, err, sent
+
+
+CLEAR_MM = 1.0       # a head within 1 mm of its IN or OUT position is clearly there; else it is among the pins
+
+
+def clear_side(rec, machine):
+    """``"in"`` or ``"out"`` where the record shows the head clearly there, else None."""
+    from firmware_protocol.machine import load_machine
+    m = load_machine(machine)
+    head = rec.get("head_mm")
+    for side in ("in", "out"):
+        if head is not None and abs(head - m[f"head.{side}_mm"]) <= CLEAR_MM:
+            return side
+    return None
+
+
+def _operator(machine, record):
+    """tests/scripted_operator.py's person, who says IN or OUT only where the head clearly is, and
+    asks for the guide when it stands among the pins."""
+    from firmware_protocol.machine import load_machine
+    from scripted_operator import ScriptedOperator, record_looker
+
+    class Person(ScriptedOperator):
+        def _clear(self):
+            return clear_side({"head_mm": self._seen()[1]}, machine)
+
+        def choose(self, question, choices):
+            if "in" in choices and "out" in choices and self._clear() is None and "guide" in choices:
+                self.asked.append(question)
+                return "guide"
+            return super().choose(question, choices)
+
+        def confirm(self, question):
+            declared = re.search(r"with the head (IN|OUT)\?", question)
+            if declared and self._clear() != declared.group(1).lower():
+                self.asked.append(question)
+                return False
+            return super().confirm(question)
+    return Person(load_machine(machine), record_looker(str(record)))
+
+
+def run_guided(args, machine, record, timeout):
+    """``wind --resume`` without ``--yes``, its questions answered from the record file as a person
+    at the terminal answers them."""
+    op = _operator(machine, record)
+    proc = subprocess.Popen(STRINGBOT + args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    chunks, outs, lock = [], [], threading.Lock()
+
+    def pump(stream, into):
+        while True:
+            b = os.read(stream.fileno(), 4096)
+            if not b:
+                return
+            with lock:
+                into.append(b)
+    readers = [threading.Thread(target=pump, args=(proc.stderr, chunks), daemon=True),
+               threading.Thread(target=pump, args=(proc.stdout, outs), daemon=True)]
+    for t in readers:
+        t.start()
+    deadline, seen, said, last_len, quiet_since = time.monotonic() + timeout, 0, 0, -1, time.monotonic()
+    while proc.poll() is None:
+        if time.monotonic() > deadline:
+            proc.kill()
+            proc.wait()
+            return "hung", b"".join(outs).decode(), b"".join(chunks).decode()
+        time.sleep(0.02)
+        with lock:
+            text = b"".join(chunks).decode("utf-8", "replace")
+        if len(text) != last_len:
+            last_len, quiet_since = len(text), time.monotonic()
+            continue
+        tail = text[seen:]
+        if time.monotonic() - quiet_since < 0.15 or not re.search(r"(: |> )$", tail):
+            continue
+        op.say(" ".join(text[said:].split()))
+        said = len(text)
+        question = " ".join(tail.split("\n")[-1].split())
+        if question.endswith("jog>"):
+            answer = op.jog("jog> ")
+        elif re.search(r"\[[yY]/[nN]\]:$", question):
+            answer = "y" if op.confirm(" ".join(tail.split())) else "n"
+        else:
+            choices = re.findall(r"\(([^()]*)\):$", question)
+            choices = [c.strip() for c in choices[-1].split(",")] if choices else []
+            answer = op.choose(" ".join(tail.split()), choices) if choices else ""
+        proc.stdin.write((answer + "\n").encode())
+        proc.stdin.flush()
+        seen = len(text)
+    for t in readers:
+        t.join(timeout=5)
+    return proc.returncode, b"".join(outs).decode(), b"".join(chunks).decode()
+
+
+# ---- one case ---------------------------------------------------------------------------------
+
+def _error_line(err):
+    lines = [ln for ln in err.splitlines() if ln.startswith("stringbot: error:")]
+    return lines[-1] if lines else (err.strip().splitlines() or [""])[-1]
+
+
+def _world_ok(rec, seq, finished):
+    wraps = [w["pin"] for w in rec.get("wraps", [])]
+    clean = not rec.get("collisions") and not rec.get("crashes")
+    return clean and (wraps == seq if finished else wraps == seq[:len(wraps)])
+
+
+def run_case(case, plan_path, seq, workdir, *, timeout=120.0, max_runs=10, seed=0):
+    """Wind ``plan_path`` through the case's faults, resuming as a user does.  Returns a dict:
+    outcome, why, runs, stops, head_out (at a stop), log (every command and its output)."""
+    work = Path(tempfile.mkdtemp(prefix="case-", dir=workdir))
+    pty, record, journal = work / "pty", work / "rec.json", work / "j.journal"
+    rng = random.Random(seed)
+    base = ["wind", str(plan_path), "--machine", case.machine, "--port", str(pty), "--journal", str(journal)]
+    log, stops, head_out, kills = [], 0, False, list(case.kills)
+    result = {"case": case.name, "label": case.label, "kind": case.kind, "log": log}
+    sim = Simulator(case.machine, pty, record, case.faults)
+    try:
+        extra, yes, repeats, last_msg = [], True, 0, None
+        for run in range(1, max_runs + len(case.kills) + 1):
+            sim.wait_port()
+            args = base + (["--yes"] if yes else []) + extra
+            if not yes:
+                rc, out, err = run_guided(args, case.machine, record, timeout)
+            elif case.sim_kill:
+                proc_rc = _kill_the_simulator(sim, args, journal, case.sim_kill, timeout, rng, log)
+                result.update(proc_rc, runs=1, stops=1)
+                return result
+            else:
+                rc, out, err, sent = run_host(args, timeout, kills[0] if kills else None, journal, rng,
+                                              case.signal)
+                if sent or (kills and rc == 0):
+                    kills.pop(0)
+            log.append(f"$ stringbot {' '.join(args)}\n-> {rc}\n{out}{err}")
+            if rc == "hung":
+                return {**result, "outcome": "hung", "why": f"run {run} did not end in {timeout:.0f} s",
+                        "runs": run, "stops": stops, "head_out": head_out}
+            if rc == "killed":
+                extra, yes = (["--resume"] if journal.exists() else []), True
+                continue
+            rec = sim.look() if rc != 0 else sim.stop()
+            if rc == 0:
+                ok = _world_ok(rec, seq, True)
+                why = "" if ok else (f"exit 0 but {len(rec.get('wraps', []))} wraps (plan {len(seq)}), "
+                                     f"{len(rec.get('collisions', []))} collisions, "
+                                     f"{len(rec.get('crashes', []))} crashes")
+                return {**result, "outcome": "exact" if ok else "silent", "why": why, "runs": run,
+                        "stops": stops, "head_out": head_out}
+            stops += 1
+            head_out = head_out or rec.get("head_side") in ("out", "on")     # OUT, or among the pins
+            msg = _error_line(err)
+            if "Traceback" in err or rc not in (1, 2, 130):
+                return {**result, "outcome": "failed", "why": f"exit {rc}: {msg[-300:]}", "runs": run,
+                        "stops": stops, "head_out": head_out}
+            repeats = repeats + 1 if msg == last_msg else 0
+            last_msg = msg
+            if repeats >= 2 and any(w in msg for w in HARDWARE):    # a dead part: only hands fix it
+                return {**result, "outcome": "refused", "runs": run, "stops": stops, "head_out": head_out,
+                        "why": f"the same stop three times, naming a part to check: {msg[-300:]}"}
+            if repeats >= 2:
+                return {**result, "outcome": "failed", "runs": run, "stops": stops, "head_out": head_out,
+                        "why": f"the same stop three times while following its advice: {msg[-300:]}"}
+            side = clear_side(rec, case.machine) if case.label != "dynamixel-ring" else rec.get("head_side")
+            if "--head-side" in msg and "--head-side" not in extra and side in ("in", "out"):
+                extra, yes = ["--resume", "--head-side", side], True      # clearly IN or OUT
+            elif yes and ("terminal" in msg or "guided" in msg or "without --yes" in msg):
+                extra, yes = ["--resume"], False               # among the pins: the guided way
+            elif "nothing was wound yet" in msg or "run the same command again" in msg:
+                extra, yes = [], True
+            elif "--resume" in msg or "resume again" in msg:
+                extra, yes = ["--resume"], True
+            else:
+                world_ok = _world_ok(sim.stop(), seq, False)
+                named = any(w in msg for w in WAYS_OUT)
+                outcome = "refused" if named and world_ok else "failed"
+                why = msg if world_ok else f"world damaged before the stop: {msg}"
+                return {**result, "outcome": outcome, "why": why[-300:], "runs": run, "stops": stops,
+                        "head_out": head_out}
+        return {**result, "outcome": "failed", "why": f"not finished after {max_runs} runs: {last_msg}",
+                "runs": max_runs, "stops": stops, "head_out": head_out}
+    finally:
+        sim.stop()
+        result["work"] = str(work)
+
+
+def _kill_the_simulator(sim, args, journal, after, timeout, rng, log):
+    """SIGKILL the simulator once ``after`` steps are journaled; judge the host's stop."""
+    proc = subprocess.Popen(STRINGBOT + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + timeout
+    while proc.poll() is None and _done(journal) < after and time.monotonic() < deadline:
+        time.sleep(0.002)
+    time.sleep(rng.uniform(0.0, 0.03))
+    sim.proc.send_signal(signal.SIGKILL)
+    sim.proc.wait()
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        log.append(f"$ stringbot {' '.join(args)}\n-> hung\n{out}{err}")
+        return {"outcome": "hung", "why": "the host did not notice the simulator's death"}
+    log.append(f"$ stringbot {' '.join(args)}\n-> {proc.returncode}\n{out}{err}")
+    done = _journal_pins(journal)
+    wraps = [w["pin"] for w in sim.look().get("wraps", [])]
+    msg = _error_line(err)
+    if proc.returncode == 1 and "--resume" in msg and done == wraps[:len(done)]:
+        return {"outcome": "refused", "why": f"host stopped at step {len(done)} with: {msg[-200:]}"}
+    return {"outcome": "failed", "why": f"exit {proc.returncode}, journal {len(done)} pins, world "
+                                        f"{len(wraps)} wraps: {msg[-200:]}"}
+
+
+def _journal_pins(journal):
+    out = []
+    for line in Path(journal).read_text().splitlines() if Path(journal).exists() else []:
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            continue
+        if rec.get("kind") == "done":
+            out.append(rec.get("pin"))
+    return out
+
+
+# ---- the matrix -------------------------------------------------------------------------------
+
+def build_cases(workdir, machines, kinds, n_points, kills, seed, plan_for):
+    """The cases, and the plan path per machine label."""
+    rng = random.Random(seed)
+    cases, plans = [], {}
+    # the first points taken: one mid-hook, one with the head IN, the other mid-hook ...
+    chosen = ["hook", "ring", "in", "out", "hook-sync"][:max(1, n_points)]
+    points_of = [p for p in POINTS if p in chosen]
+    for name in machines:
+        plan = plan_for(name)
+        plans[name] = plan
+        if name == "dynamixel-ring":
+            steps = len(json.loads(Path(plan).read_text())["sequence"])
+            for kind in (k for k in DXL_KINDS if k in kinds or "dynamixel" in kinds):
+                for i in range(n_points):
+                    s = 1 + (steps - 2) * (i + 1) // (n_points + 1)
+                    cases.append(Case(name, name, kind, f"{kind}@{4 * s + 1 + i % 4}"))
+        else:
+            table = line_table(plan, name)
+            for kind in (k for k in LINE_KINDS if k in kinds):
+                for point, n in fault_points(table, name, rng, points_of).items():
+                    cases.append(Case(name, name, kind, f"{kind}@{n}", point))
+            mid = [p for p in points_of if p != "hook-sync"]
+            for kind in (k for k in MID_KINDS if f"{k}+0.5" in kinds):
+                for point, n in fault_points(table, name, rng, mid).items():
+                    cases.append(Case(name, name, f"{kind}+0.5", f"{kind}@{n}+0.5", point))
+            uno = uno_machine(workdir, name)
+            for kind in (k for k in UNO_KINDS if f"uno-{k}" in kinds):
+                for point, n in fault_points(table, name, rng, mid).items():
+                    spec = f"{kind}@{n}+0.5" if kind == "reset" else f"{kind}@{n}"
+                    cases.append(Case(uno, name, f"uno-{kind}", spec, point))
+        steps = len(json.loads(Path(plan).read_text())["sequence"])
+        if "host-kill" in kinds and kills:
+            cases.append(Case(name, name, "host-kill", point=f"{kills} kills",
+                              kills=sorted(rng.sample(range(1, steps - 1), kills))))
+        if "host-int" in kinds and kills and name != "dynamixel-ring":
+            for machine, kind in ((name, "host-int"), (uno_machine(workdir, name), "uno-int")):
+                cases.append(Case(machine, name, kind, point=f"{kills} Ctrl-C", signal=signal.SIGINT,
+                                  kills=sorted(rng.sample(range(1, steps - 1), kills))))
+        if "sim-kill" in kinds:
+            cases.append(Case(name, name, "sim-kill", point="1 kill", sim_kill=rng.randrange(2, steps - 2)))
+    return cases, plans
+
+
+def run_matrix(cases, plans, workdir, *, workers=2, timeout=120.0, progress=None):
+    seqs = {name: json.loads(Path(p).read_text())["sequence"] for name, p in plans.items()}
+
+    def one(i_case):
+        i, case = i_case
+        try:
+            r = run_case(case, plans[case.label], seqs[case.label], workdir, timeout=timeout, seed=i)
+        except Exception as exc:          # the harness itself: shown, counted as failed
+            r = {"case": case.name, "label": case.label, "kind": case.kind, "outcome": "failed",
+                 "why": f"harness: {type(exc).__name__}: {exc}", "log": [], "runs": 0, "stops": 0,
+                 "head_out": False}
+        r["point"] = case.point
+        if progress:
+            progress(r)
+        return r
+    with ThreadPoolExecutor(max_workers=max(1, min(workers, 2))) as pool:
+        return list(pool.map(one, enumerate(cases)))
+
+
+def _way(entry):
+    """``wind:1``, ``resume:2``, ``head-side in:0``, ``guided:0`` for one logged run."""
+    cmd, rc = entry.split("\n")[:2]
+    way = ("guided" if "--yes" not in cmd else "head-side " + cmd.split("--head-side ")[1].split()[0]
+           if "--head-side" in cmd else "resume" if "--resume" in cmd else "wind")
+    return f"{way}:{rc[3:]}"
+
+
+def table_lines(results):
+    rows = defaultdict(Counter)
+    for r in results:
+        rows[(r["label"], r["kind"])][r["outcome"]] += 1
+        rows[(r["label"], r["kind"])]["head out"] += bool(r.get("head_out"))
+    out = [f"{'machine':13s} {'fault':15s} {'cases':>5s} " + " ".join(f"{o:>7s}" for o in OUTCOMES)
+           + "  head not IN at a stop"]
+    totals = defaultdict(Counter)
+    for (label, kind), c in rows.items():
+        n = sum(c[o] for o in OUTCOMES)
+        out.append(f"{label:13s} {kind:15s} {n:5d} " + " ".join(f"{c[o]:7d}" for o in OUTCOMES)
+                   + f"  {c['head out']}")
+        for o in OUTCOMES:
+            totals[label][o] += c[o]
+    out.append("")
+    for label, c in totals.items():
+        n = sum(c[o] for o in OUTCOMES)
+        out.append(f"{label:13s} {'all':15s} {n:5d} " + " ".join(f"{c[o]:7d}" for o in OUTCOMES))
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--lines", type=int, default=40, help="chords of the plan (steps = lines + 1)")
+    ap.add_argument("--picture", default="camera.png", help="a picture in examples/")
+    ap.add_argument("--machines", nargs="*", default=GCODE + ["dynamixel-ring"])
+    ap.add_argument("--kinds", nargs="*", default=LINE_KINDS + [f"{k}+0.5" for k in MID_KINDS]
+                    + [f"uno-{k}" for k in UNO_KINDS] + ["dynamixel", "host-kill", "host-int", "sim-kill"])
+    ap.add_argument("--points", type=int, default=5, help="fault points per kind (5: ring, out, hook, "
+                    "hook-sync, in; mid-move kinds skip hook-sync)")
+    ap.add_argument("--kills", type=int, default=5, help="host SIGKILLs in the host-kill case")
+    ap.add_argument("--workers", type=int, default=2, help="cases run at once (at most 2)")
+    ap.add_argument("--timeout", type=float, default=120.0, help="seconds one command may take")
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--only", default=None, help="run only the cases whose name holds this text "
+                    "(e.g. 'grbl-ring power@179+0.5')")
+    ap.add_argument("--verbose", action="store_true", help="one line per case, with the resumes it took")
+    ap.add_argument("--logs", default=None, help="folder for the logs of every case that is not exact "
+                    "(default: a temporary folder, kept and named)")
+    args = ap.parse_args()
+    workdir = tempfile.mkdtemp(prefix="fault-matrix-")
+    logs = Path(args.logs or Path(workdir) / "logs")
+    logs.mkdir(parents=True, exist_ok=True)
+    t0 = time.monotonic()
+    cases, plans = build_cases(workdir, args.machines, args.kinds, args.points, args.kills, args.seed,
+                               lambda name: make_plan(workdir, name, args.lines, args.picture))
+    if args.only:
+        cases = [c for c in cases if args.only in c.name]
+    steps = {n: len(json.loads(Path(p).read_text())["sequence"]) for n, p in plans.items()}
+    print(f"plan: examples/{args.picture}, {args.lines} lines, 300 pins: "
+          + ", ".join(f"{n} {s} steps" for n, s in steps.items()))
+    print(f"{len(cases)} cases, {args.workers} at a time; load average {os.getloadavg()[0]:.2f}", flush=True)
+
+    def progress(r):
+        if args.verbose:
+            ways = [_way(e) for e in r["log"]]
+            print(f"  {r['outcome']:7s} {r['case']} ({r.get('point', '')}): {' '.join(ways)}", flush=True)
+        elif r["outcome"] != "exact":
+            print(f"  {r['outcome']:7s} {r['case']} ({r.get('point', '')}): {r['why']}", flush=True)
+    results = run_matrix(cases, plans, workdir, workers=args.workers, timeout=args.timeout, progress=progress)
+    print()
+    for line in table_lines(results):
+        print(line)
+    bad = [r for r in results if r["outcome"] != "exact"]
+    for i, r in enumerate(bad):
+        name = re.sub(r"[^\w@.+-]+", "_", r["case"])
+        (logs / f"{i:03d}-{r['outcome']}-{name}.log").write_text(
+            f"{r['case']} ({r.get('point', '')}): {r['outcome']}: {r['why']}\n\n" + "\n".join(r["log"]))
+    n = Counter(r["outcome"] for r in results)
+    print(f"\ntotal {len(results)}: " + ", ".join(f"{o} {n[o]}" for o in OUTCOMES)
+          + f"; {time.monotonic() - t0:.0f} s, load average {os.getloadavg()[0]:.2f}")
+    if bad:
+        print(f"logs of the {len(bad)} cases that were not exact: {logs}")
+    for r in results:
+        if r.get("work") and r["outcome"] == "exact":
+            shutil.rmtree(r["work"], ignore_errors=True)
+    return 1 if n["silent"] or n["hung"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
