@@ -68,6 +68,7 @@ def dry_run(plan, name, sync, workdir, record=True):
     finally:
         link.close()
         journal.close()
+        protocol_sim.forget(url)             # its record written now, inside the temporary folder
     check = ""
     if rec:
         r = json.loads(rec.read_text())
