@@ -138,10 +138,11 @@ def test_silence_is_a_clear_failure():
 
 
 def test_a_marlin_that_stops_sending_keepalives_is_declared_unresponsive(tmp_path):
-    """``stringbot simulate`` (its own process, a pty) with the ring slowed to 30 deg/s, so a long
-    jump's M400 waits long enough for busy: keepalives; then ``freeze@60`` hangs the firmware.
-    ``wind`` stops after a few keepalive periods (not motion_timeout's 600 s): exit 1, one line,
-    a stop record, the resume hint."""
+    """``stringbot simulate --realtime`` (its own process, a pty) with the ring slowed to 30 deg/s:
+    step 2's half-turn jump waits 6 s on M400, with a busy: keepalive every 2 s; ``freeze@40`` (the
+    M400 of step 3) then hangs the firmware.  ``wind`` stops after three keepalive periods (not
+    motion_timeout's 600 s): exit 1, one line, a stop record, the resume hint.  (Realtime: in fast
+    mode the simulator may finish a move before its M400 arrives, and then sends no keepalive.)"""
     import os
     import signal
     import subprocess
@@ -152,11 +153,12 @@ def test_a_marlin_that_stops_sending_keepalives_is_declared_unresponsive(tmp_pat
     from stringbot.winding import read_journal
     from test_gcode_replay import make_plan
 
-    write_plan(make_plan([0, 150, 1, 151, 2, 152, 299, 149, 75, 225]), tmp_path / "plan.json")
+    write_plan(make_plan([0, 150, 1, 151]), tmp_path / "plan.json")
     pty = tmp_path / "pty"
     cli = [sys.executable, "-c", "from stringbot.cli import main; main()"]
     sim = subprocess.Popen(cli + ["simulate", "--machine", "marlin-ring", "--pty", str(pty), "--set", "M203 A30",
-                                  "--faults", "freeze@60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                  "--realtime", "--faults", "freeze@40"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         for _ in range(200):
             if os.path.islink(pty):
@@ -169,7 +171,8 @@ def test_a_marlin_that_stops_sending_keepalives_is_declared_unresponsive(tmp_pat
         sim.communicate(timeout=10)
     assert wind.returncode == 1 and "Traceback" not in wind.stderr, wind.stderr
     [line] = [x for x in wind.stderr.splitlines() if x.startswith("stringbot: error:")]
-    assert "stopped answering" in line and "keepalives" in line and "--resume" in line
+    assert "stopped answering" in line and "keepalives every 2 s" in line and "--resume" in line
+    assert "(at pin 1, step 3)" in line
     stop = read_journal(tmp_path / "plan.json.journal").last_stop
     assert stop["reason"] == "failed" and "stopped answering" in stop["error"]
 

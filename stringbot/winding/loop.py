@@ -169,6 +169,13 @@ class Winder:
                 self.link.finish()
         except KeyboardInterrupt:
             self._interrupted()
+        except Interrupted as exc:
+            # declined at a spool change: the machine stands at rest where the last step ended; the
+            # stop record keeps that measured position (after a reboot, e.g. an Uno's on open, it
+            # is the truth)
+            self.state = WindState.INTERRUPTED
+            self._stop_record("interrupted", str(exc), None)
+            raise
         except MachineFailure as exc:
             self._failed(exc)
             raise
