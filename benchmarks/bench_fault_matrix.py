@@ -74,6 +74,12 @@ WAYS_OUT = ("--resume", "--head-side", "--from-step", "terminal", "guided", "hom
 HARDWARE = ("check its power", "cable")      # a stop that names a part to fix by hand
 
 
+def _sigint_default():
+    """Children take Ctrl-C as a user's would, even when this script runs in the background
+    (where a shell starts it with SIGINT ignored, and every child would inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @dataclass
 class Case:
     machine: str                  # name or machine file path
@@ -175,7 +181,8 @@ class Simulator:
         cmd = STRINGBOT + ["simulate", "--machine", machine, "--pty", str(pty), "--record", str(record)]
         if faults:
             cmd += ["--faults", faults]
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 preexec_fn=_sigint_default)
         deadline = time.monotonic() + 30
         while not self.pty.exists():
             if self.proc.poll() is not None or time.monotonic() > deadline:
@@ -219,7 +226,7 @@ def run_host(args, timeout, kill_after=None, journal=None, rng=None, sig=signal.
     """One ``stringbot wind`` run; ``kill_after``: send it ``sig`` once the journal holds that many
     steps.  Returns (returncode or "hung" or "killed", stdout, stderr, whether the signal was sent)."""
     proc = subprocess.Popen(STRINGBOT + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            stdin=subprocess.DEVNULL, text=True)
+                            stdin=subprocess.DEVNULL, text=True, preexec_fn=_sigint_default)
     if kill_after is not None:
         deadline = time.monotonic() + timeout
         kill_after = max(kill_after, _done(journal) + 1)       # once this run has wound a step
@@ -288,7 +295,7 @@ def run_guided(args, machine, record, timeout):
     at the terminal answers them."""
     op = _operator(machine, record)
     proc = subprocess.Popen(STRINGBOT + args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE)
+                            stderr=subprocess.PIPE, preexec_fn=_sigint_default)
     chunks, outs, lock = [], [], threading.Lock()
 
     def pump(stream, into):
@@ -382,8 +389,9 @@ def run_case(case, plan_path, seq, workdir, *, timeout=120.0, max_runs=10, seed=
             if rc == "killed":
                 extra, yes = (["--resume"] if journal.exists() else []), True
                 continue
-            rec = sim.look() if rc != 0 else sim.stop()
-            if rc == 0:
+            finished = rc == 0 or "says the winding is finished" in err   # killed after its last record
+            rec = sim.look() if not finished else sim.stop()
+            if finished:
                 ok = _world_ok(rec, seq, True)
                 why = "" if ok else (f"exit 0 but {len(rec.get('wraps', []))} wraps (plan {len(seq)}), "
                                      f"{len(rec.get('collisions', []))} collisions, "
@@ -429,7 +437,8 @@ def run_case(case, plan_path, seq, workdir, *, timeout=120.0, max_runs=10, seed=
 
 def _kill_the_simulator(sim, args, journal, after, timeout, rng, log):
     """SIGKILL the simulator once ``after`` steps are journaled; judge the host's stop."""
-    proc = subprocess.Popen(STRINGBOT + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(STRINGBOT + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 preexec_fn=_sigint_default)
     deadline = time.monotonic() + timeout
     while proc.poll() is None and _done(journal) < after and time.monotonic() < deadline:
         time.sleep(0.002)
