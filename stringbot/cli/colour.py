@@ -24,13 +24,13 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     """``stringbot plan IMAGE --colors ...``: the colour planner, its plan and its preview as woven."""
     import os
 
-    from .._files import check_not_same_file, check_output_path, write_all_atomic
+    from .._files import write_all_atomic
     from ..planner.colour_build import plan_colour
     from ..planner.colour_render import plan_layers, woven_rgb
     from ..planner.image import parse_crop
     from ..planner.palette import WHITE, parse_background, parse_colors
     from ..planner.progress import reporting
-    from .planning import _refuse_a_wound_plan
+    from .planning import check_plan_outputs
     from .progress import PlanProgress
 
     mono = [f"--{name.replace('_', '-')}" if name != "T" else "-T" for name in MONO_ONLY if name in given]
@@ -40,15 +40,7 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     board = parse_background(background) if background is not None else WHITE
     palette = parse_colors(colors if colors is not None else "black", background=board)
     preview = preview or os.path.splitext(output)[0] + ".png"
-    check_output_path(output, what="plan")
-    check_output_path(preview, what="preview")
-    for out, what in ((output, "plan"), (preview, "preview")):
-        check_not_same_file(out, image, what=what, source_what="picture")
-    check_not_same_file(preview, output, what="preview", source_what="plan")
-    if not force:
-        _refuse_a_wound_plan(output)
-    if lines != "auto" and lines <= 0:
-        raise BadInput(f"--lines {lines}; expected a positive number or auto")
+    check_plan_outputs(output, preview, sources=((image, "picture"),), force=force, lines=lines)
     shown = PlanProgress().start()
     try:
         with reporting(shown):

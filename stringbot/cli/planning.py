@@ -82,7 +82,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
-    from .._files import check_not_same_file, check_output_path, write_all_atomic
+    from .._files import write_all_atomic
     from ..planner.build import plan_picture
     from ..planner.image import parse_crop
     from ..planner.render import draw_woven, png_bytes
@@ -119,17 +119,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                                size=size, lines=lines, no_cache=no_cache, given=given,
                                model=thread_model(diameter_mm, thread_mm), force=force)
     preview = preview or os.path.splitext(output)[0] + ".png"
-    check_output_path(output, what="plan")
-    check_output_path(preview, what="preview")
-    for out, what in ((output, "plan"), (preview, "preview")):
-        for src, name in ((image, "picture"), (importance, "mask")):
-            if src:
-                check_not_same_file(out, src, what=what, source_what=name)
-    check_not_same_file(preview, output, what="preview", source_what="plan")
-    if not force:
-        _refuse_a_wound_plan(output)
-    if lines != "auto" and lines <= 0:
-        raise BadInput(f"--lines {lines}; expected a positive number or auto")
+    check_plan_outputs(output, preview, sources=((image, "picture"), (importance, "mask")), force=force,
+                       lines=lines)
     from ..planner.progress import reporting
     from .progress import PlanProgress
 
@@ -163,6 +154,26 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
             est = estimate(p, mach)
             click.echo(f"machine {mach.name}: about {format_duration(est.seconds)} of winding, "
                        f"{est.thread_m:.1f} m of thread")
+
+
+def check_plan_outputs(output, preview, *, sources, force, lines):
+    """Refuse, before any work, outputs that cannot be written or would destroy something: a
+    plan or preview path that is not a regular file, one that is a ``sources`` file
+    (``(path, name)`` pairs), a preview that is the plan, a plan that a journal is winding
+    (unless ``force``), and a non-positive ``lines``."""
+    from .._files import check_not_same_file, check_output_path
+
+    check_output_path(output, what="plan")
+    check_output_path(preview, what="preview")
+    for out, what in ((output, "plan"), (preview, "preview")):
+        for src, name in sources:
+            if src:
+                check_not_same_file(out, src, what=what, source_what=name)
+    check_not_same_file(preview, output, what="preview", source_what="plan")
+    if not force:
+        _refuse_a_wound_plan(output)
+    if lines != "auto" and lines <= 0:
+        raise BadInput(f"--lines {lines}; expected a positive number or auto")
 
 
 def _refuse_a_wound_plan(output):
