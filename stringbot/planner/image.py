@@ -80,9 +80,8 @@ def default_crop(width, height):
     return {"cx": width / 2.0, "cy": height / 2.0, "r": min(width, height) / 2.0}
 
 
-def fit_crop(path, frame="circle"):
-    """The crop that holds the whole picture, letterboxed: centred, radius half the diagonal (circle) or half
-    the longer side (square); what lies outside the picture is white."""
+def _upright_size(path):
+    """(width, height) of the picture as shown: swapped where its EXIF orientation turns it."""
     im = _open(path, "picture")
     w, h = im.size
     try:
@@ -90,19 +89,20 @@ def fit_crop(path, frame="circle"):
             w, h = h, w
     except Exception:  # noqa: BLE001 -- a damaged EXIF block: as stored
         pass
+    return w, h
+
+
+def fit_crop(path, frame="circle"):
+    """The crop that holds the whole picture, letterboxed: centred, radius half the diagonal (circle) or half
+    the longer side (square); what lies outside the picture is white."""
+    w, h = _upright_size(path)
     r = float(np.hypot(w, h)) / 2.0 if frame == "circle" else max(w, h) / 2.0
     return {"cx": w / 2.0, "cy": h / 2.0, "r": r}
 
 
 def threadtone_crop(path):
     """ThreadTone's crop: the largest centred square, its corner on whole pixels (``int((w - side) / 2)``)."""
-    im = _open(path, "picture")
-    w, h = im.size
-    try:
-        if int(im.getexif().get(0x0112, 1)) in (5, 6, 7, 8):
-            w, h = h, w
-    except Exception:  # noqa: BLE001 -- a damaged EXIF block: as stored
-        pass
+    w, h = _upright_size(path)
     side = min(w, h)
     return {"cx": int((w - side) / 2) + side / 2.0, "cy": int((h - side) / 2) + side / 2.0, "r": side / 2.0}
 
