@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import BadInput
+from ..planner.palette import describe_color
 from .hooking import wrap_direction
 
 __all__ = ["PinList", "pin_list", "format_txt", "format_csv", "square_offset", "thread_metres",
@@ -77,14 +78,6 @@ def thread_metres(plan, size_mm, sequence=None):
     return float(np.linalg.norm(xy[seq[1:]] - xy[seq[:-1]], axis=1).sum()) * size_mm / 1000.0
 
 
-def _color_name(color):
-    try:
-        from ..planner.palette import color_name
-        name = color_name(color)
-    except Exception:  # noqa: BLE001 -- a name is a courtesy
-        name = color
-    return color if name == color else f"{name} ({color})"
-
 
 def pin_list(plan, *, plan_name="plan", size_mm=None, size_from="", thread_m=None):
     """The pin list of a connected ``plan``.
@@ -115,7 +108,7 @@ def pin_list(plan, *, plan_name="plan", size_mm=None, size_from="", thread_m=Non
     for lay in plan.layers:
         seq = [int(p) for p in lay.sequence]
         if len(plan.colors) > 1:
-            layers.append((len(rows), lay.color, _color_name(lay.color), (seq[0] - offset) % n))
+            layers.append((len(rows), lay.color, describe_color(lay.color), (seq[0] - offset) % n))
         for k, pin in enumerate(seq):
             prev = seq[k - 1] if k > 0 else None
             nxt = seq[k + 1] if k + 1 < len(seq) else None

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import BadInput
 
-__all__ = ["threads", "parse_color", "parse_colors", "parse_background", "to_linear", "to_srgb",
+__all__ = ["threads", "describe_color", "parse_color", "parse_colors", "parse_background", "to_linear", "to_srgb",
            "hex_to_rgb", "rgb_to_hex", "auto_palette", "color_name", "BLACK", "WHITE", "MAX_COLORS",
            "MIN_DELTA_E"]
 
@@ -53,6 +53,16 @@ def color_name(hex_color):
         if value == hex_color:
             return name
     return {WHITE: "white", BLACK: "black"}.get(hex_color, hex_color)
+
+
+def describe_color(hex_color):
+    """``"crimson (#b22222)"`` for a listed thread, the hex alone otherwise: never raises (a
+    damaged thread list costs the name, not the winding)."""
+    try:
+        name = color_name(hex_color)
+    except Exception:  # noqa: BLE001 -- a name is a courtesy
+        name = hex_color
+    return hex_color if name == hex_color else f"{name} ({hex_color})"
 
 
 def hex_to_rgb(hex_color):

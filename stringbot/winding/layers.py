@@ -27,19 +27,11 @@ import logging
 
 from ..errors import Interrupted
 from ..links.operator import tie_on
+from ..planner.palette import describe_color
 
 __all__ = ["Threads", "layer_problems", "tied_layer", "status_line"]
 
 log = logging.getLogger(__name__)
-
-
-def _name(color):
-    try:
-        from ..planner.palette import color_name
-        name = color_name(color)
-    except Exception:  # noqa: BLE001 -- a name is a courtesy
-        name = color
-    return color if name == color else f"{name} ({color})"
 
 
 def tied_layer(state):
@@ -79,12 +71,12 @@ class Threads:
     def question(self, layer, step):
         n = len(self.colors)
         pin = self.plan.sequence[step]
-        color = _name(self.colors[layer])
+        color = describe_color(self.colors[layer])
         where = "the first pin of its layer" if step == self.starts[layer] else f"step {step + 1}"
         if self.tied is None:
             return (f"Tie the {color} thread on at pin {pin} ({where}, layer {layer + 1} of {n}), "
                     "then go on?")
-        old = _name(self.colors[self.tied])
+        old = describe_color(self.colors[self.tied])
         return (f"Spool change: cut the {old} thread and tie it off where it ends; tie the {color} thread "
                 f"on at pin {pin} ({where}, layer {layer + 1} of {n}). The machine holds with the head "
                 "in. Go on?")
@@ -112,10 +104,10 @@ def status_line(plan, state):
     k = tied_layer(state)
     n = len(plan.colors)
     if k is None:
-        return f"threads: {n} layers; none tied on yet (layer 1: {_name(plan.colors[0])})"
+        return f"threads: {n} layers; none tied on yet (layer 1: {describe_color(plan.colors[0])})"
     nxt = plan.layer_of(min(state.next_step, len(plan.sequence) - 1))
-    then = "" if nxt == k or state.finished else f"; next: a spool change to layer {nxt + 1} ({_name(plan.colors[nxt])})"
-    return f"threads: layer {k + 1} of {n} tied on ({_name(plan.colors[k])}){then}"
+    then = "" if nxt == k or state.finished else f"; next: a spool change to layer {nxt + 1} ({describe_color(plan.colors[nxt])})"
+    return f"threads: layer {k + 1} of {n} tied on ({describe_color(plan.colors[k])}){then}"
 
 
 def layer_problems(plan, wraps):
