@@ -50,7 +50,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from collections import Counter, defaultdict
 from concurrent.futures import ThreadPoolExecutor
@@ -60,8 +59,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
-STRINGBOT = [sys.executable, "-m", "stringbot.cli"]
+from matrix_user import (  # noqa: E402
+    STRINGBOT, Simulator, _done, _sigint_default, clear_side, run_guided, run_host)
+
 GCODE = ["grbl-ring", "grblhal-ring", "marlin-ring"]
 LINE_KINDS = ["garble", "error", "drop-ok", "reset", "power", "disconnect", "reboot"]
 MID_KINDS = ["reset", "power", "reboot"]                   # kind@N+0.5
@@ -74,10 +76,6 @@ WAYS_OUT = ("--resume", "--head-side", "--from-step", "terminal", "guided", "hom
 HARDWARE = ("check its power", "cable")      # a stop that names a part to fix by hand
 
 
-def _sigint_default():
-    """Children take Ctrl-C as a user's would, even when this script runs in the background
-    (where a shell starts it with SIGINT ignored, and every child would inherit that)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 @dataclass
@@ -171,176 +169,6 @@ def uno_machine(workdir, name):
         text = text.replace("[controller]\n", "[controller]\nreset_on_open = true\n", 1)
     path.write_text(text)
     return str(path)
-
-
-# ---- the two processes ------------------------------------------------------------------------
-
-class Simulator:
-    def __init__(self, machine, pty, record, faults=""):
-        self.pty, self.record = Path(pty), Path(record)
-        cmd = STRINGBOT + ["simulate", "--machine", machine, "--pty", str(pty), "--record", str(record)]
-        if faults:
-            cmd += ["--faults", faults]
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 preexec_fn=_sigint_default)
-        deadline = time.monotonic() + 30
-        while not self.pty.exists():
-            if self.proc.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError("the simulator did not start: " + self.proc.stderr.read()[-300:])
-            time.sleep(0.02)
-
-    def wait_port(self, timeout=10.0):
-        """As a user waits for the port to come back (after a pulled cable or a power cut)."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline and self.proc.poll() is None:
-            if os.path.exists(os.path.realpath(self.pty)):
-                return True
-            time.sleep(0.05)
-        return False
-
-    def look(self):
-        try:
-            return json.loads(self.record.read_text())
-        except (OSError, ValueError):
-            return {}
-
-    def stop(self):
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.look()
-
-
-def _done(journal):
-    try:
-        return sum(1 for line in Path(journal).read_bytes().splitlines() if b'"kind":"done"' in line)
-    except FileNotFoundError:
-        return 0
-
-
-def run_host(args, timeout, kill_after=None, journal=None, rng=None, sig=signal.SIGKILL):
-    """One ``stringbot wind`` run; ``kill_after``: send it ``sig`` once the journal holds that many
-    steps.  Returns (returncode or "hung" or "killed", stdout, stderr, whether the signal was sent)."""
-    proc = subprocess.Popen(STRINGBOT + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            stdin=subprocess.DEVNULL, text=True, preexec_fn=_sigint_default)
-    if kill_after is not None:
-        deadline = time.monotonic() + timeout
-        kill_after = max(kill_after, _done(journal) + 1)       # once this run has wound a step
-        while proc.poll() is None and _done(journal) < kill_after and time.monotonic() < deadline:
-            time.sleep(0.002)
-        time.sleep(rng.uniform(0.0, 0.03))
-        sent = proc.poll() is None
-        if sent and sig == signal.SIGKILL:
-            proc.send_signal(signal.SIGKILL)
-            out, err = proc.communicate()
-            return "killed", out, err, True
-        if sent:
-            proc.send_signal(sig)
-    else:
-        sent = False
-    try:
-        out, err = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        out, err = proc.communicate()
-        return "hung", out, err, sent
-    return proc.returncode, out, err, sent
-
-
-CLEAR_MM = 1.0       # a head within 1 mm of its IN or OUT position is clearly there; else it is among the pins
-
-
-def clear_side(rec, machine):
-    """``"in"`` or ``"out"`` where the record shows the head clearly there, else None."""
-    from firmware_protocol.machine import load_machine
-    m = load_machine(machine)
-    head = rec.get("head_mm")
-    for side in ("in", "out"):
-        if head is not None and abs(head - m[f"head.{side}_mm"]) <= CLEAR_MM:
-            return side
-    return None
-
-
-def _operator(machine, record):
-    """tests/scripted_operator.py's person, who says IN or OUT only where the head clearly is, and
-    asks for the guide when it stands among the pins."""
-    from firmware_protocol.machine import load_machine
-    from scripted_operator import ScriptedOperator, record_looker
-
-    class Person(ScriptedOperator):
-        def _clear(self):
-            return clear_side({"head_mm": self._seen()[1]}, machine)
-
-        def choose(self, question, choices):
-            if "in" in choices and "out" in choices and self._clear() is None and "guide" in choices:
-                self.asked.append(question)
-                return "guide"
-            return super().choose(question, choices)
-
-        def confirm(self, question):
-            declared = re.search(r"with the head (IN|OUT)\?", question)
-            if declared and self._clear() != declared.group(1).lower():
-                self.asked.append(question)
-                return False
-            return super().confirm(question)
-    return Person(load_machine(machine), record_looker(str(record)))
-
-
-def run_guided(args, machine, record, timeout):
-    """``wind --resume`` without ``--yes``, its questions answered from the record file as a person
-    at the terminal answers them."""
-    op = _operator(machine, record)
-    proc = subprocess.Popen(STRINGBOT + args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, preexec_fn=_sigint_default)
-    chunks, outs, lock = [], [], threading.Lock()
-
-    def pump(stream, into):
-        while True:
-            b = os.read(stream.fileno(), 4096)
-            if not b:
-                return
-            with lock:
-                into.append(b)
-    readers = [threading.Thread(target=pump, args=(proc.stderr, chunks), daemon=True),
-               threading.Thread(target=pump, args=(proc.stdout, outs), daemon=True)]
-    for t in readers:
-        t.start()
-    deadline, seen, said, last_len, quiet_since = time.monotonic() + timeout, 0, 0, -1, time.monotonic()
-    while proc.poll() is None:
-        if time.monotonic() > deadline:
-            proc.kill()
-            proc.wait()
-            return "hung", b"".join(outs).decode(), b"".join(chunks).decode()
-        time.sleep(0.02)
-        with lock:
-            text = b"".join(chunks).decode("utf-8", "replace")
-        if len(text) != last_len:
-            last_len, quiet_since = len(text), time.monotonic()
-            continue
-        tail = text[seen:]
-        if time.monotonic() - quiet_since < 0.15 or not re.search(r"(: |> )$", tail):
-            continue
-        op.say(" ".join(text[said:].split()))
-        said = len(text)
-        question = " ".join(tail.split("\n")[-1].split())
-        if question.endswith("jog>"):
-            answer = op.jog("jog> ")
-        elif re.search(r"\[[yY]/[nN]\]:$", question):
-            answer = "y" if op.confirm(" ".join(tail.split())) else "n"
-        else:
-            choices = re.findall(r"\(([^()]*)\):$", question)
-            choices = [c.strip() for c in choices[-1].split(",")] if choices else []
-            answer = op.choose(" ".join(tail.split()), choices) if choices else ""
-        proc.stdin.write((answer + "\n").encode())
-        proc.stdin.flush()
-        seen = len(text)
-    for t in readers:
-        t.join(timeout=5)
-    return proc.returncode, b"".join(outs).decode(), b"".join(chunks).decode()
 
 
 # ---- one case ---------------------------------------------------------------------------------
