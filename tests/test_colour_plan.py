@@ -139,6 +139,8 @@ def test_colour_names_and_hex():
     ("black,white", "#ffffff", "colour of the board"),
     ("red,#000000", "#000000", "colour of the board"),
     (",", "#ffffff", "names no colour"),
+    ("red,,blue", "#ffffff", "empty item"),
+    ("red,", "#ffffff", "empty item"),
 ])
 def test_bad_colours(text, background, words):
     with pytest.raises(BadInput) as info:
@@ -151,6 +153,7 @@ def test_bad_colours(text, background, words):
     (["--colors", "auto:0"], "auto:N with N in 1..8"),
     (["--colors", "auto:99"], "auto:N with N in 1..8"),
     (["--colors", "#zzzzzz"], "not a colour"),
+    (["--colors", "red,,blue"], "has an empty item"),
     (["--colors", "black,red", "--background", "black"], "colour of the board"),
     (["--background", "#12"], "not a colour"),
     (["--colors", "black", "--style", "fill"], "--style is a knob of the one-thread planner"),

@@ -142,9 +142,12 @@ def parse_colors(text, *, background=WHITE):
         if not 1 <= n <= MAX_COLORS:
             raise BadInput(f"--colors {raw!r}: {n} threads; expected auto:N with N in 1..{MAX_COLORS}")
         return ("auto", n)
-    parts = [p for p in (x.strip() for x in raw.split(",")) if p]
-    if not parts:
+    parts = [x.strip() for x in raw.split(",")]
+    if not any(parts):
         raise BadInput(f"--colors {raw!r} names no colour; expected e.g. black,#b22222 or auto:3")
+    if not all(parts):
+        raise BadInput(f"--colors {raw!r} has an empty item; expected colours separated by single commas, "
+                       "e.g. black,#b22222")
     if len(parts) > MAX_COLORS:
         raise BadInput(f"--colors gives {len(parts)} threads; expected at most {MAX_COLORS}")
     colors = [parse_color(p) for p in parts]
