@@ -498,6 +498,14 @@ def test_host_and_servo_power_lost_together_on_a_long_move_asks_which_pin(machin
     assert [w.pin for w in world.wraps] == plan.sequence and world.collisions == []
 
 
+def _wait_for_the_port(pty, timeout=20.0):
+    import os
+    import time
+    deadline = time.monotonic() + timeout
+    while not os.path.exists(pty) and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+
 def _error_lines(stderr):
     return [line for line in stderr.splitlines() if line.startswith("stringbot: error:")]
 
@@ -519,6 +527,7 @@ def test_a_pulled_cable_is_one_line_and_a_stop_record_then_resume_finishes(machi
         first = _stringbot("wind", str(tmp_path / "plan.json"), "--machine", "dynamixel-ring", "--port", pty,
                            "--yes")
         stop = read_journal(tmp_path / "plan.json.journal").last_stop
+        _wait_for_the_port(pty)            # as a user would: the cable plugged back in, its device there
         again = _stringbot("wind", str(tmp_path / "plan.json"), "--machine", "dynamixel-ring", "--port", pty,
                            "--yes", "--resume")
     finally:
