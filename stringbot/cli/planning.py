@@ -66,8 +66,11 @@ class _Lines(click.ParamType):
               help="T of tanh(f / T): larger spreads chords out [detail: 30].")
 @click.option("--epsilon", type=int, default=2, show_default=True, help="Error-diffusion radius in pins.")
 @click.option("--iterations", type=int, default=25, show_default=True, help="Iteration limit of the least-squares solve (LSQR).")
-@click.option("--refine", type=int, default=300, show_default=True,
-              help="Residual: pins the refinement revisits (0: no refinement).")
+@click.option("--refine", type=int, default=None,
+              help="Residual: pins the pixel refinement revisits (0: none) [default: 300, or 0 when polishing].")
+@click.option("--polish", type=int, default=None,
+              help="Residual: pins the as-woven polish revisits: each change judged by the piece as woven, seen "
+                   "from a step away (0: none) [default: 1200 with --lines auto, 0 with a line count].")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
@@ -77,7 +80,7 @@ class _Lines(click.ParamType):
 @click.option("--background", default=None, metavar="white|black|#rrggbb",
               help="Colour of the board the threads are wound over [default: white]; plans in colour.")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
-             start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
+             start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine, polish,
              no_cache, force, colors, background):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
@@ -131,7 +134,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                              lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
                              importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
                              T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
-                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine)
+                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish)
     finally:
         shown.close()
     if machine is not None:

@@ -39,7 +39,7 @@ __all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "thr
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").  beta, gamma and T are
 #: those of the ``detail`` style; ``fill`` uses :data:`FILL`.
 DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
-            "iterations": 25, "refine": 300, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
+            "iterations": 25, "refine": 300, "polish": 1200, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
 #: ThreadTone's working size: a picture of radius 500 px.
@@ -146,7 +146,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
                  picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
-                 diameter_mm=None, thread_mm=None, fit=False, refine=DEFAULTS["refine"]):
+                 diameter_mm=None, thread_mm=None, fit=False, refine=None, polish=None):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -185,8 +185,15 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     fit : bool
         Crop the whole picture, letterboxed (white around it), instead of the
         largest centred circle; conflicts with ``crop``.
-    refine : int
-        Residual only: pins the refinement revisits (0: none).
+    refine : int or None
+        Residual only: pins the pixel refinement revisits (0: none); None:
+        300 when there is no polish, else 0 (the polish does it better).
+    polish : int or None
+        Residual only: pins the as-woven polish revisits
+        (:mod:`stringbot.planner.polish`; 0: none); None: 1200 with
+        ``lines="auto"``, 0 with a line count (the paper's SSIM at a given
+        line count rewards the pixel-level drawing, which the polish trades
+        for the piece as seen).
 
     Returns
     -------
@@ -215,8 +222,13 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         raise BadInput(f"--style, --beta, --gamma and -T are knobs of --method fitness; {method} has none of them")
     if fit and crop is not None:
         raise BadInput("--fit and --crop both choose the part of the picture to paint; give one of them")
-    if not (isinstance(refine, int) and 0 <= refine <= 1_000_000):
-        raise BadInput(f"--refine {refine}; expected 0..1000000 pins")
+    if polish is None:
+        polish = DEFAULTS["polish"] if lines == "auto" else 0
+    if refine is None:
+        refine = 0 if polish else DEFAULTS["refine"]
+    for name, v in (("refine", refine), ("polish", polish)):
+        if not (isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 1_000_000):
+            raise BadInput(f"--{name} {v}; expected 0..1000000 pins")
     if fit and picture is None:
         from .image import fit_crop
 
@@ -244,12 +256,13 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
               "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
               "importance": str(importance) if importance is not None else None}
-    chords = None
+    chords = woven_cover = None
     if method == "residual":
-        seq, extra = _residual_run(space, pic, mask, weights, lines if lines == "auto" else k, model,
-                                   start_pin=None if auto_start else start_pin, refine=refine)
+        seq, extra, woven_cover = _residual_run(space, pic, mask, weights, lines if lines == "auto" else k, model,
+                                                start_pin=None if auto_start else start_pin, refine=refine,
+                                                polish=polish)
         params["start_pin"] = int(seq[0])
-        params.update(refine=refine, thread_px=round(model.width_px(size), 4))
+        params.update(refine=refine, polish=polish, thread_px=round(model.width_px(size), 4))
         stats.update(extra)
     elif method == "greedy":
         from .greedy import greedy_sequence
@@ -293,11 +306,12 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     return Plan(diameter_mm=model.diameter_mm, thread_mm=model.thread_mm,
                 pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
-                connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])])
+                connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])],
+                woven_cover=woven_cover)
 
 
-def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine):
-    """The default method: residual choice under the thread model, then refinement."""
+def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine, polish):
+    """The default method: residual choice under the thread model, then refinement and polish."""
     from .greedy import _PinLines
     from .refine import refine_sequence
     from .residual import Canvas, residual_sequence
@@ -319,9 +333,34 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine)
     report("refining")
     seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
     area = float(w.sum())
-    return seq, {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
-                 "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
-                 "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
+    out = {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
+           "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
+           "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
+    if polish:
+        t = time.perf_counter()
+        report("polishing")
+        seq, ps, cover = _polish(seq, target, w, space, model, polish=polish)
+        out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
+        return seq, out, cover
+    return seq, out, None
+
+
+def _polish(seq, target, w, space, model, *, polish):
+    """The as-woven polish on the error's grid (:data:`~stringbot.planner.woven.GRID` px at most)."""
+    from .fitness import frame_mask
+    from .polish import polish_plan
+    from .woven import GRID
+
+    size = target.shape[0]
+    m = min(GRID, size)
+    if m != size:
+        from skimage.transform import resize
+
+        target = resize(target, (m, m), order=1, anti_aliasing=True)
+        w = resize(w, (m, m), order=1, anti_aliasing=True)
+    inside = frame_mask(m, space.frame)
+    target, w = np.where(inside, target, 0.0), np.where(inside, w, 0.0)
+    return polish_plan(seq, target, w, space, model.width_px(m), budget=polish)
 
 
 def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alpha, epsilon, iterations, start_pin,

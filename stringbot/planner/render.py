@@ -56,7 +56,9 @@ def draw_woven(plan, *, size=1001, board=255, thread=0):
     Parameters
     ----------
     plan : Plan
-        Its ``diameter_mm`` and ``thread_mm`` give the thread's width.
+        Its ``diameter_mm`` and ``thread_mm`` give the thread's width.  A plan
+        just polished (its ``woven_cover`` at least twice as fine as ``size``)
+        is drawn from that coverage instead, averaged down.
     size : int
     board, thread : int
         Gray levels 0..255 of the board and the thread.
@@ -67,7 +69,17 @@ def draw_woven(plan, *, size=1001, board=255, thread=0):
     """
     from .thread import composite, coverage
 
-    cov = coverage(plan.chord_list(), plan.pin_xy, size=size, width_px=plan.thread_model().width_px(size))
+    fine = getattr(plan, "woven_cover", None)
+    if fine is not None and fine.shape[0] >= 2 * size:  # drawn already, finer: average it down
+        k = fine.shape[0] // size
+        n = fine.shape[0] // k
+        cov = fine[:n * k, :n * k].reshape(n, k, n, k).mean(axis=(1, 3))
+        if n != size:
+            from skimage.transform import resize
+
+            cov = resize(cov, (size, size), order=1, anti_aliasing=False)
+    else:
+        cov = coverage(plan.chord_list(), plan.pin_xy, size=size, width_px=plan.thread_model().width_px(size))
     return np.clip(np.rint(composite(cov, board=float(board), thread=float(thread))), 0, 255).astype(np.uint8)
 
 

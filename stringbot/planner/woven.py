@@ -1,0 +1,260 @@
+"""The as-woven polish: refine a plan against the piece as the eye sees it.
+
+The residual planner (:mod:`stringbot.planner.residual`) judges its threads
+pixel by pixel at the working size, with the thread model's average law
+(``D = tanh(S)``).  Two things it cannot see decide how the piece looks from
+a step away:
+
+* *where threads overlap.*  Whether two threads crossing one working pixel
+  lie side by side or on top of each other changes that pixel's darkness by
+  up to a third (0.08 rms on the horse); only a canvas on which the thread is
+  about one pixel wide shows it.
+* *the eye's blur.*  From a step away (and in ``stringbot score``'s as-woven
+  error) the piece is seen through a blur of about 2 mm on a 500 mm frame:
+  a light gap beside a dark band matters, a thread's own stripe does not.
+
+:class:`WovenCanvas` keeps both: the summed coverage ``Sf`` of the threads on a
+fine canvas where the thread is about one pixel wide (the scorer's 2048 px
+for the default 0.25 mm on 500 mm), capped at 1 per fine pixel as the thread
+model does, averaged to a grid of ``m`` pixels (``D``); and the error
+``E = || B (s (t - D)) ||^2`` where ``B`` is the eye's Gaussian blur (sigma
+2 px at 512 px, the scorer's), ``t`` the target darkness and ``s`` the square
+root of the pixel weights (0 outside the frame).  With ``G = B^2 (s (t - D))``
+kept up to date, a change ``dD`` of the drawing (``v = s dD``) changes the
+error by exactly ``-2 <v, G> + <v, B^2 v>``.
+
+:mod:`stringbot.planner.polish` revisits pins of the sequence against it.
+"""
+
+import logging
+import math
+
+import numpy as np
+
+from .residual import repeat_gains
+from .thread import SegmentStamp
+
+log = logging.getLogger(__name__)
+
+__all__ = ["WovenCanvas", "EYE_SIGMA", "MAX_FINE", "GRID"]
+
+#: the eye's blur: sigma as a fraction of the frame's side (the scorer's 2 px at 512 px)
+EYE_SIGMA = 2.0 / 512.0
+#: side of the grid the error is measured on (at most the working size): the eye's blur is 1 px there
+GRID = 256
+#: largest side of the fine canvas (its coverage is float32: 64 MB)
+MAX_FINE = 4096
+#: footprints kept (about 80 kB each on a 2048-px canvas)
+MAX_CACHED = 4000
+
+
+class WovenCanvas:
+    """The drawing as woven on a fine canvas, and its error as the eye sees it.
+
+    Parameters
+    ----------
+    target : ndarray of float, shape (m, m)
+        Darkness wanted, 0..1, on the grid the error is measured on.
+    weights : ndarray of float, shape (m, m)
+        Pixel weights (0 outside the frame).
+    pin_xy : ndarray of float, shape (pins, 2)
+    width_px : float
+        Thread width in pixels of the ``m`` grid.
+    sigma : float
+        The eye's blur as a fraction of the frame's side (:data:`EYE_SIGMA`).
+    """
+
+    def __init__(self, target, weights, pin_xy, width_px, *, sigma=EYE_SIGMA):
+        from scipy.ndimage import correlate
+
+        m = target.shape[0]
+        self.size = m
+        self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
+        f = max(1, int(round(1.0 / float(width_px))))  # the thread about one fine pixel wide
+        f = max(1, min(f, MAX_FINE // m))
+        self.f, self.F = f, m * f
+        self.Sf = np.zeros(self.F * self.F, dtype=np.float32)
+        self._wf = float(width_px) * f  # the thread's width in fine pixels
+        self._stamp = SegmentStamp(self.F, self._wf)
+        self._fp = {}
+        self.t = np.asarray(target, dtype=np.float64).ravel()
+        self.s = np.sqrt(np.asarray(weights, dtype=np.float64).ravel())
+        self.D = np.zeros(m * m)
+        # B: a Gaussian of sigma in pixels of the m grid, cut at two sigmas; B^2 its own square
+        sg = float(sigma) * m
+        r1 = max(1, int(math.ceil(2.0 * sg)))
+        ax1 = np.arange(-r1, r1 + 1, dtype=np.float64)
+        k1 = np.exp(-ax1 ** 2 / (2.0 * sg * sg))
+        k1 /= k1.sum()
+        k2 = np.convolve(k1, k1)
+        rad = 2 * r1
+        ax = np.arange(-rad, rad + 1, dtype=np.int64)
+        P = m + 2 * rad
+        self.rad, self.P = rad, P
+        self._koff = (ax[:, None] * P + ax[None, :]).ravel()  # B^2 on the padded grid
+        self._kw = np.outer(k2, k2).ravel()
+        self._koff1 = (ax1.astype(np.int64)[:, None] * P + ax1.astype(np.int64)[None, :]).ravel()  # B
+        self._kw1 = np.outer(k1, k1).ravel()
+        r, c = np.divmod(np.arange(m * m), m)
+        self.pidx = (r + rad) * P + (c + rad)  # each grid pixel on the padded grid
+        pad = np.zeros((P, P))
+        pad[rad:rad + m, rad:rad + m] = (self.s * self.t).reshape(m, m)
+        self.G = correlate(pad, np.outer(k2, k2), mode="constant").ravel()
+        self.E = float(np.dot(self.s * self.t, self.G[self.pidx]))
+        self.u = np.zeros(P * P)  # s (1 - D): how much darker one more thread still makes a pixel
+        self.u[self.pidx] = self.s
+        self.g = self.u * self.G  # the error's slope: how much one more thread's coverage lowers E (/ 2)
+        n = len(self.pin_xy)
+        self.uses = np.zeros((n, n), dtype=np.int32)
+        self.gains = repeat_gains()
+        self._rows = {}
+        self._mark = np.zeros(m * m, dtype=np.int64)
+        self._acc = np.zeros(m * m)
+
+    # -- footprints -------------------------------------------------------------------------------------
+
+    def footprint(self, a, b):
+        """``(flat, cover, inv, cu)`` of chord ``(a, b)``: its fine pixels (each once), their coverage,
+        and the grid pixels ``cu`` they fall in (each once; fine pixel ``i`` is in ``cu[inv[i]]``); cached."""
+        key = (a, b) if a < b else (b, a)
+        fp = self._fp.get(key)
+        if fp is None:
+            if len(self._fp) >= MAX_CACHED:
+                self._fp.clear()  # a footprint is stamped again exactly as it was
+            flat, cov = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])
+            F, f = self.F, self.f
+            coarse = (flat // (F * f)) * self.size + (flat % F) // f
+            cu, inv = self._unique(coarse)
+            fp = self._fp[key] = (flat.astype(np.int32), cov.astype(np.float32), inv, cu)
+        return fp
+
+    def _unique(self, idx):
+        """``(u, inv)``: the distinct grid pixels of ``idx`` and where each entry is in ``u``."""
+        mark = self._mark
+        order = np.arange(len(idx))
+        mark[idx] = order
+        u = idx[mark[idx] == order]
+        mark[u] = np.arange(len(u))
+        return u, mark[idx].astype(np.int32)
+
+    # -- the whole drawing -------------------------------------------------------------------------------
+
+    def build(self, chords):
+        """Draw ``chords`` on a fresh canvas; returns ``E``."""
+        from scipy.ndimage import correlate
+
+        self.Sf[:] = 0.0
+        self.uses[:] = 0
+        for a, b in chords:
+            flat, cov, _, _ = self.footprint(int(a), int(b))
+            self.Sf[flat] += cov  # each fine pixel once per footprint
+            self.uses[a, b] += 1
+            if a != b:
+                self.uses[b, a] += 1
+        m, f = self.size, self.f
+        self.D = np.minimum(self.Sf, 1.0).reshape(m, f, m, f).mean(axis=(1, 3), dtype=np.float64).ravel()
+        x = self.s * (self.t - self.D)
+        pad = np.zeros((self.P, self.P))
+        pad[self.rad:self.rad + m, self.rad:self.rad + m] = x.reshape(m, m)
+        k = self._kw.reshape(2 * self.rad + 1, 2 * self.rad + 1)
+        self.G = correlate(pad, k, mode="constant").ravel()
+        self.E = float(np.dot(x, self.G[self.pidx]))
+        self.u[self.pidx] = self.s * (1.0 - self.D)
+        self.g = self.u * self.G
+        return self.E
+
+    def error(self):
+        """``E = || B (s (t - D)) ||^2``."""
+        return self.E
+
+    # -- changes -----------------------------------------------------------------------------------------
+
+    def _fine(self, chords_out, chords_in, write):
+        """Change of ``D`` from removing then adding chords: ``(cp, dD)`` on the grid.
+
+        ``write``: ``"keep"`` changes ``Sf`` (exact); ``"undo"`` puts it back (exact); ``"none"``
+        judges each chord against ``Sf`` as it is (exact but where the chords given overlap each other).
+        """
+        saved, parts = [], []
+        for chords, sign in ((chords_out, -1.0), (chords_in, 1.0)):
+            for a, b in chords:
+                flat, cov, inv, cu = self.footprint(a, b)
+                old = self.Sf[flat]
+                new = old + cov if sign > 0 else np.maximum(old - cov, 0.0)
+                if write != "none":
+                    self.Sf[flat] = new
+                    if write == "undo":
+                        saved.append((flat, old))
+                np.minimum(new, 1.0, out=new)
+                parts.append((cu, np.bincount(inv, weights=new - np.minimum(old, 1.0), minlength=len(cu))))
+        for flat, old in reversed(saved):
+            self.Sf[flat] = old
+        if not parts:
+            return None, None
+        ff = float(self.f * self.f)
+        if len(parts) == 1:
+            return parts[0][0], parts[0][1] / ff
+        acc = self._acc
+        for cu, d in parts:
+            acc[cu] += d
+        cp, _ = self._unique(np.concatenate([cu for cu, _ in parts]))
+        dD = acc[cp] / ff
+        acc[cp] = 0.0
+        return cp, dD
+
+    def _change(self, cp, dD, *, blur2=False):
+        """``(dE, v, h)``: the exact change of ``E`` for ``dD`` on grid pixels ``cp``; ``h = B^2 v``
+        if ``blur2`` (else None: ``<v, B^2 v> = |B v|^2`` is cheaper)."""
+        v = self.s[cp] * dD
+        pp = self.pidx[cp]
+        if blur2:
+            h = self._blur(cp, v, self._koff, self._kw)
+            return float(-2.0 * np.dot(v, self.G[pp]) + np.dot(v, h[pp])), v, h
+        b = self._blur(cp, v, self._koff1, self._kw1)
+        return float(-2.0 * np.dot(v, self.G[pp]) + np.add.reduce(b * b)), v, None
+
+    def _blur(self, cp, v, koff, kw):
+        idx = (self.pidx[cp][:, None] + koff[None, :]).ravel()
+        return np.bincount(idx, weights=(v[:, None] * kw[None, :]).ravel(), minlength=self.P * self.P)
+
+    def delta(self, chords_out=(), chords_in=()):
+        """Exact change of ``E`` if ``chords_out`` were removed and ``chords_in`` added (nothing changes)."""
+        cp, dD = self._fine(chords_out, chords_in, "undo")
+        return 0.0 if cp is None else self._change(cp, dD)[0]
+
+    def estimate(self, chords_out=(), chords_in=()):
+        """:meth:`delta` with each chord judged against the drawing as it is: exact but where the
+        chords given overlap each other (near the pins they share); cheaper (nothing is written)."""
+        cp, dD = self._fine(chords_out, chords_in, "none")
+        return 0.0 if cp is None else self._change(cp, dD)[0]
+
+    def apply(self, chords_out=(), chords_in=()):
+        """Remove ``chords_out`` and add ``chords_in``; returns the exact change of ``E``."""
+        for chords, sign in ((chords_out, -1), (chords_in, 1)):
+            for a, b in chords:
+                self.uses[a, b] += sign
+                if a != b:
+                    self.uses[b, a] += sign
+        cp, dD = self._fine(chords_out, chords_in, "keep")
+        if cp is None:
+            return 0.0
+        dE, v, h = self._change(cp, dD, blur2=True)
+        self.G -= h
+        self.D[cp] += dD
+        self.u[self.pidx[cp]] = self.s[cp] * (1.0 - self.D[cp])
+        reg = np.flatnonzero(h)
+        self.g[reg] = self.u[reg] * self.G[reg]
+        self.E += dE
+        return dE
+
+    # -- scores ------------------------------------------------------------------------------------------
+
+    def scores(self, pin_lines, a):
+        """``(others, score)``: the mean of ``u G`` along each chord from pin ``a`` (its error slope)."""
+        row = self._rows.get(a)
+        if row is None:
+            others, pix, starts, counts = pin_lines.get_with_counts(a)
+            row = self._rows[a] = (others, self.pidx[pix], starts, counts)
+        others, pp, starts, counts = row
+        sc = np.add.reduceat(self.g.take(pp), starts) / counts
+        return others, sc * self.gains[np.minimum(self.uses[a, others], len(self.gains) - 1)]
