@@ -11,6 +11,7 @@ thread on a 500 mm frame, so it looks darker than the piece will.
 
 import io
 import logging
+import math
 
 import numpy as np
 
@@ -18,7 +19,10 @@ from .chords import line_pixels, pin_pixels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw", "draw_woven", "png_bytes"]
+__all__ = ["draw", "draw_woven", "png_bytes", "MAX_FINE"]
+
+#: largest side of the canvas a drawing as woven is made on before it is averaged down
+MAX_FINE = 4096
 
 
 def draw(plan_or_chords, pin_xy=None, *, size=1001):
@@ -56,9 +60,11 @@ def draw_woven(plan, *, size=1001, board=255, thread=0):
     Parameters
     ----------
     plan : Plan
-        Its ``diameter_mm`` and ``thread_mm`` give the thread's width.  A plan
-        just polished (its ``woven_cover`` at least twice as fine as ``size``)
-        is drawn from that coverage instead, averaged down.
+        Its ``diameter_mm`` and ``thread_mm`` give the thread's width.  The
+        threads are drawn where the thread is about one pixel wide (so that
+        two threads on one spot are as dark as one, and two side by side twice
+        as dark), then averaged down to ``size``; a plan just polished is
+        averaged down from the polish's own canvas (its ``woven_cover``).
     size : int
     board, thread : int
         Gray levels 0..255 of the board and the thread.
@@ -69,17 +75,20 @@ def draw_woven(plan, *, size=1001, board=255, thread=0):
     """
     from .thread import composite, coverage
 
+    # threads overlap where they overlap at their own width: drawn on a canvas where the thread is about
+    # one pixel wide (as the as-woven error's 2048 px), then averaged down
+    model = plan.thread_model()
+    k = max(1, min(int(math.ceil(1.0 / model.width_px(size) - 1e-9)), MAX_FINE // size))
     fine = getattr(plan, "woven_cover", None)
-    if fine is not None and fine.shape[0] >= 2 * size:  # drawn already, finer: average it down
-        k = fine.shape[0] // size
-        n = fine.shape[0] // k
-        cov = fine[:n * k, :n * k].reshape(n, k, n, k).mean(axis=(1, 3))
-        if n != size:
-            from skimage.transform import resize
+    if fine is None or fine.shape[0] < k * size:
+        fine = coverage(plan.chord_list(), plan.pin_xy, size=k * size, width_px=model.width_px(k * size))
+    k = fine.shape[0] // size
+    n = fine.shape[0] // k
+    cov = fine[:n * k, :n * k].reshape(n, k, n, k).mean(axis=(1, 3)) if k > 1 else fine[:n, :n]
+    if n != size:
+        from skimage.transform import resize
 
-            cov = resize(cov, (size, size), order=1, anti_aliasing=False)
-    else:
-        cov = coverage(plan.chord_list(), plan.pin_xy, size=size, width_px=plan.thread_model().width_px(size))
+        cov = resize(cov, (size, size), order=1, anti_aliasing=False)
     return np.clip(np.rint(composite(cov, board=float(board), thread=float(thread))), 0, 255).astype(np.uint8)
 
 

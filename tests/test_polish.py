@@ -1,0 +1,183 @@
+"""The as-woven polish: its canvas (exact error changes), the polish itself, and how a user gets it."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.ndimage import correlate, gaussian_filter
+
+from stringbot.planner.build import plan_picture
+from stringbot.planner.chords import chord_space
+from stringbot.planner.fitness import frame_mask
+from stringbot.planner.greedy import _PinLines
+from stringbot.planner.polish import polish_plan
+from stringbot.planner.render import draw_woven
+from stringbot.planner.scoring import woven_error
+from stringbot.planner.thread import coverage
+from stringbot.planner.woven import WovenCanvas
+
+from planner_helpers import picture
+
+M = 64  # the error's grid in these tests
+WIDTH = 1.0 / 32  # thread width in grid pixels: the fine canvas is 2048 px, as the scorer's
+
+
+def horse_like(size=M):
+    """A dark blob (a body) with two legs, on white: the kind of picture the polish helps most."""
+    y, x = np.mgrid[:size, :size] / size
+    g = np.full((size, size), 255.0)
+    g[((x - 0.5) / 0.3) ** 2 + ((y - 0.42) / 0.16) ** 2 < 1] = 10.0
+    g[(y > 0.45) & (y < 0.8) & (np.abs(x - 0.3) < 0.04)] = 10.0
+    g[(y > 0.45) & (y < 0.8) & (np.abs(x - 0.68) < 0.04)] = 10.0
+    return g
+
+
+def canvas_for(g, space):
+    mask = frame_mask(g.shape[0], "circle")
+    t = np.where(mask, 1 - g / 255.0, 0.0)
+    return WovenCanvas(t, mask.astype(float), space.pin_xy, WIDTH), t, mask
+
+
+def brute_error(canvas, chords, t, mask):
+    """E from scratch: the chords' coverage on the fine canvas capped at 1, averaged to the grid, the
+    error blurred by the canvas's own kernel."""
+    F, f, m = canvas.F, canvas.f, canvas.size
+    cov = coverage(chords, canvas.pin_xy, size=F, width_px=WIDTH * f) if chords else np.zeros((F, F))
+    D = np.minimum(cov, 1.0).reshape(m, f, m, f).mean(axis=(1, 3))
+    x = np.sqrt(mask.astype(float)) * (t - D)
+    k1 = canvas._kw1.reshape(int(np.sqrt(len(canvas._kw1))), -1)
+    pad = np.pad(x, canvas.rad)
+    b = correlate(pad, k1, mode="constant")
+    return float(np.sum(b ** 2))
+
+
+def test_the_canvas_knows_its_error_exactly_after_every_change():
+    space = chord_space(60)
+    g = horse_like()
+    canvas, t, mask = canvas_for(g, space)
+    chords = [(0, 30), (5, 40), (5, 40), (12, 47), (20, 51)]
+    canvas.build(chords)
+    assert canvas.error() == pytest.approx(brute_error(canvas, chords, t, mask), rel=1e-6)
+    # a change: its predicted change of E is the change of the error recomputed from scratch
+    out, new = [(5, 40), (12, 47)], [(7, 33), (33, 50)]
+    d = canvas.delta(chords_out=out, chords_in=new)
+    assert canvas.error() == pytest.approx(brute_error(canvas, chords, t, mask), rel=1e-6)  # delta changed nothing
+    applied = canvas.apply(chords_out=out, chords_in=new)
+    after = [(0, 30), (5, 40), (20, 51), (7, 33), (33, 50)]
+    exact = brute_error(canvas, after, t, mask) - brute_error(canvas, chords, t, mask)
+    assert d == pytest.approx(exact, rel=1e-5, abs=1e-6)
+    assert applied == pytest.approx(exact, rel=1e-5, abs=1e-6)
+    assert canvas.error() == pytest.approx(brute_error(canvas, after, t, mask), rel=1e-6)
+    # a chord drawn again darkens only what the first left uncovered (coverage capped per fine pixel)
+    once = canvas.delta(chords_in=[(2, 25)])
+    canvas.apply(chords_in=[(2, 25)])
+    twice = canvas.delta(chords_in=[(2, 25)])
+    assert abs(twice) < abs(once)
+
+
+def test_the_estimate_is_the_exact_change_where_the_chords_do_not_overlap():
+    space = chord_space(60)
+    canvas, t, mask = canvas_for(horse_like(), space)
+    canvas.build([(0, 30), (10, 45), (3, 33)])
+    far = dict(chords_out=[(10, 45)], chords_in=[(15, 20)])  # apart: neither crosses the other
+    assert canvas.estimate(**far) == pytest.approx(canvas.delta(**far), rel=1e-9)
+    near = dict(chords_out=[(10, 45)], chords_in=[(10, 44)])  # shares pin 10, overlaps near it
+    assert canvas.estimate(**near) != pytest.approx(canvas.delta(**near), rel=1e-9)
+
+
+def test_polish_never_makes_the_woven_picture_worse_and_keeps_one_thread():
+    space = chord_space(60)
+    g = horse_like()
+    canvas, t, mask = canvas_for(g, space)
+    # a deliberately poor start: chords everywhere
+    rng = np.random.default_rng(3)
+    seq = [0]
+    for _ in range(120):
+        nxt = int(rng.integers(0, 60))
+        while space.index[seq[-1], nxt] < 0:
+            nxt = int(rng.integers(0, 60))
+        seq.append(nxt)
+    chords0 = list(zip(seq[:-1], seq[1:]))
+    e0 = brute_error(canvas, chords0, t, mask)
+    out, stats, cover = polish_plan(seq, t, mask.astype(float), space, WIDTH, budget=len(seq))
+    chords1 = list(zip(out[:-1], out[1:]))
+    e1 = brute_error(canvas, chords1, t, mask)
+    assert len(out) == len(seq) and out[0] == seq[0] and out[-1] == seq[-1]
+    assert all(space.index[a, b] >= 0 for a, b in chords1)  # every chord a chord; no pin twice in a row
+    assert stats["rerouted"] > 5 and stats["tried"] == len(seq) - 2
+    assert e1 < 0.95 * e0
+    assert stats["woven_rms"] < stats["woven_rms_before"]
+    # the model's error is the error of the plan it returns (kept in step change by change)
+    area = mask.sum()
+    assert stats["woven_rms"] == pytest.approx(np.sqrt(e1 / area), rel=1e-4)
+    # its coverage is the polished plan's, capped
+    ref = np.minimum(coverage(chords1, space.pin_xy, size=cover.shape[0], width_px=WIDTH * canvas.f), 1.0)
+    assert np.abs(cover - ref).max() < 3e-3  # the bulk drawing computes in float32
+    # the same input, the same plan
+    again, _, _ = polish_plan(seq, t, mask.astype(float), space, WIDTH, budget=len(seq))
+    assert again == out
+
+
+def test_auto_lines_are_polished_and_a_line_count_is_not():
+    g = horse_like(101)
+    pic = picture(g)
+    auto = plan_picture("x.png", picture=pic, pins=60, size=101)
+    fixed = plan_picture("x.png", picture=pic, pins=60, size=101, lines=200)
+    assert auto.parameters["polish"] == 1200 and auto.parameters["refine"] == 0
+    assert auto.stats["polish"]["rerouted"] > 0
+    assert auto.stats["polish"]["woven_rms"] < auto.stats["polish"]["woven_rms_before"]
+    assert fixed.parameters["polish"] == 0 and fixed.parameters["refine"] == 300 and "polish" not in fixed.stats
+    # without the polish the same choice is made; the polish reroutes some of it and the piece as the
+    # scorer sees it gets better
+    plain = plan_picture("x.png", picture=pic, pins=60, size=101, polish=0, refine=0)
+    assert len(plain.sequence) == len(auto.sequence) and plain.sequence != auto.sequence
+    gray = np.asarray(np.kron(g, np.ones((6, 6)))[:512, :512], dtype=float)  # the picture at 512 px (crude)
+    e_plain = woven_error(plain.chord_list(), plain.pin_xy, gray, frame="circle")
+    e_auto = woven_error(auto.chord_list(), auto.pin_xy, gray, frame="circle")
+    assert e_auto < e_plain
+
+
+def test_the_preview_of_a_polished_plan_is_its_woven_drawing():
+    pic = picture(horse_like(101))
+    p = plan_picture("x.png", picture=pic, pins=60, size=101)
+    assert p.woven_cover is not None
+    fast = draw_woven(p, size=1001).astype(float)
+    p.woven_cover = None
+    slow = draw_woven(p, size=1001).astype(float)
+    assert fast.shape == slow.shape == (1001, 1001)
+    # the same piece as the eye sees it (the two canvases put a thread on different pixels: 2020 px here,
+    # 2002 px for the 1001-px drawing)
+    assert abs(fast.mean() - slow.mean()) < 1.0
+    assert np.abs(gaussian_filter(fast, 3) - gaussian_filter(slow, 3)).mean() < 1.5
+    assert fast.mean() < 250
+
+
+def test_polish_on_the_command_line(tmp_path):
+    from PIL import Image
+
+    img = tmp_path / "blob.png"
+    Image.fromarray(horse_like(160).astype(np.uint8)).save(img)
+    out = tmp_path / "p.json"
+    env = dict(os.environ, STRINGBOT_CACHE=str(tmp_path / "cache"))
+
+    def run(*args):
+        p = subprocess.run([sys.executable, "-c", "from stringbot.cli import main; main()", *map(str, args)],
+                           capture_output=True, text=True, env=env, timeout=120)
+        return p.returncode, p.stderr
+
+    code, err = run("plan", img, "-o", out, "--pins", "60", "--size", "101", "--polish", "50")
+    assert code == 0, err
+    doc = json.loads(out.read_text())
+    assert doc["parameters"]["polish"] == 50 and doc["stats"]["polish"]["tried"] == 50
+    assert "woven_cover" not in doc
+    # a bad budget: one line, exit 2, the plan already there untouched
+    before = out.read_bytes()
+    for bad in ("-3", "lots"):
+        code, err = run("plan", img, "-o", out, "--pins", "60", "--size", "101", "--polish", bad, "--force")
+        assert code == 2 and len(err.strip().splitlines()) == 1 and "--polish" in err, err
+        assert "Traceback" not in err
+    assert "expected 0..1000000 pins" in run("plan", img, "-o", out, "--polish", "-3", "--force")[1]
+    assert out.read_bytes() == before
