@@ -336,6 +336,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
     out = {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
            "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
            "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
+    del canvas, pin_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
     if polish:
         t = time.perf_counter()
         report("polishing")

@@ -73,13 +73,14 @@ def polish_pins(canvas, seq, order, pin_lines):
         if not np.isfinite(total[q]):
             continue
         old, new = [(a, p), (p, c)], [(a, q), (q, c)]
-        if canvas.estimate(chords_out=old, chords_in=new) >= 0.0:
-            continue
-        if canvas.apply(chords_out=old, chords_in=new) < 0.0:  # exact
-            seq[k] = q
-            rerouted += 1
-        else:  # the estimate erred where the chords overlap: put the old ones back
-            canvas.apply(chords_out=new, chords_in=old)
+        if canvas.estimate(chords_out=old, chords_in=new) < 0.0:
+            if canvas.apply(chords_out=old, chords_in=new) < 0.0:  # exact
+                seq[k] = q
+                rerouted += 1
+                canvas.forget(old)
+                continue
+            canvas.apply(chords_out=new, chords_in=old)  # the estimate erred where the chords overlap
+        canvas.forget(new)
     return rerouted
 
 

@@ -96,7 +96,7 @@ class WovenCanvas:
         self._koff1 = (ax1.astype(np.int64)[:, None] * P + ax1.astype(np.int64)[None, :]).ravel()  # B
         self._kw1 = np.outer(k1, k1).ravel()
         r, c = np.divmod(np.arange(m * m), m)
-        self.pidx = (r + rad) * P + (c + rad)  # each grid pixel on the padded grid
+        self.pidx = ((r + rad) * P + (c + rad)).astype(np.int32)  # each grid pixel on the padded grid
         pad = np.zeros((P, P))
         pad[rad:rad + m, rad:rad + m] = (self.s * self.t).reshape(m, m)
         self.G = correlate(pad, np.outer(k2, k2), mode="constant").ravel()
@@ -127,6 +127,12 @@ class WovenCanvas:
             cu, inv = self._unique(coarse)
             fp = self._fp[key] = (flat.astype(np.int32), cov.astype(np.float32), inv, cu)
         return fp
+
+    def forget(self, chords):
+        """Drop the cached footprints of chords not drawn (a change tried and not made)."""
+        for a, b in chords:
+            if self.uses[a, b] == 0:
+                self._fp.pop((a, b) if a < b else (b, a), None)
 
     def _unique(self, idx):
         """``(u, inv)``: the distinct grid pixels of ``idx`` and where each entry is in ``u``."""
@@ -254,6 +260,7 @@ class WovenCanvas:
         row = self._rows.get(a)
         if row is None:
             others, pix, starts, counts = pin_lines.get_with_counts(a)
+            pin_lines.cache.pop(a, None)  # kept here, on the padded grid, instead
             row = self._rows[a] = (others, self.pidx[pix], starts, counts)
         others, pp, starts, counts = row
         sc = np.add.reduceat(self.g.take(pp), starts) / counts
