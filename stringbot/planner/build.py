@@ -313,6 +313,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
 def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine, polish):
     """The default method: residual choice under the thread model, then refinement and polish."""
     from .greedy import _PinLines
+    from .polish import polish_plan
     from .refine import refine_sequence
     from .residual import Canvas, residual_sequence
 
@@ -340,17 +341,19 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
     if polish:
         t = time.perf_counter()
         report("polishing")
-        seq, ps, cover = _polish(seq, target, w, space, model, polish=polish)
+        woven = _woven_canvas(target, w, space, model)
+        woven.build(list(zip(seq[:-1], seq[1:])))
+        seq, ps, cover = polish_plan(seq, None, None, space, None, budget=polish, canvas=woven)
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
         return seq, out, cover
     return seq, out, None
 
 
-def _polish(seq, target, w, space, model, *, polish):
-    """The as-woven polish on the error's grid (:data:`~stringbot.planner.woven.GRID` px at most)."""
+def _woven_canvas(target, w, space, model):
+    """The polish's canvas for a picture at the working size: the error on a grid of
+    :data:`~stringbot.planner.woven.GRID` px at most (the eye's blur is 1 px there)."""
     from .fitness import frame_mask
-    from .polish import polish_plan
-    from .woven import GRID
+    from .woven import GRID, WovenCanvas
 
     size = target.shape[0]
     m = min(GRID, size)
@@ -360,8 +363,7 @@ def _polish(seq, target, w, space, model, *, polish):
         target = resize(target, (m, m), order=1, anti_aliasing=True)
         w = resize(w, (m, m), order=1, anti_aliasing=True)
     inside = frame_mask(m, space.frame)
-    target, w = np.where(inside, target, 0.0), np.where(inside, w, 0.0)
-    return polish_plan(seq, target, w, space, model.width_px(m), budget=polish)
+    return WovenCanvas(np.where(inside, target, 0.0), np.where(inside, w, 0.0), space.pin_xy, model.width_px(m))
 
 
 def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alpha, epsilon, iterations, start_pin,

@@ -84,21 +84,23 @@ def polish_pins(canvas, seq, order, pin_lines):
     return rerouted
 
 
-def polish_plan(seq, target, weights, space, width_px, *, budget):
+def polish_plan(seq, target, weights, space, width_px, *, budget, canvas=None):
     """Polish a pin sequence against the picture as woven (see the module notes).
 
     Parameters
     ----------
     seq : list of int
     target : ndarray of float, shape (m, m)
-        Darkness wanted on the error's grid.
+        Darkness wanted on the error's grid (None with ``canvas``).
     weights : ndarray of float, shape (m, m)
-        Pixel weights (0 outside the frame).
+        Pixel weights (0 outside the frame; None with ``canvas``).
     space : ChordSpace
     width_px : float
-        Thread width in pixels of the ``m`` grid.
+        Thread width in pixels of the ``m`` grid (None with ``canvas``).
     budget : int
         Pins to revisit.
+    canvas : WovenCanvas, optional
+        One that holds ``seq`` drawn already (:meth:`WovenCanvas.build`); else it is drawn here.
 
     Returns
     -------
@@ -112,12 +114,14 @@ def polish_plan(seq, target, weights, space, width_px, *, budget):
     seq = [int(p) for p in seq]
     if len(seq) < 3 or budget <= 0:
         return seq, {"tried": 0, "rerouted": 0}, None
-    canvas = WovenCanvas(target, weights, space.pin_xy, width_px)
-    e0 = canvas.build(list(zip(seq[:-1], seq[1:])))
-    pin_lines = _PinLines(space, target.shape[0], nearest=True, spacing=POLISH_SPACING)
+    if canvas is None:
+        canvas = WovenCanvas(target, weights, space.pin_xy, width_px)
+        canvas.build(list(zip(seq[:-1], seq[1:])))
+    e0 = canvas.error()
+    pin_lines = _PinLines(space, canvas.size, nearest=True, spacing=POLISH_SPACING)
     order = badness_order(canvas, seq, pin_lines)[:budget]
     rerouted = polish_pins(canvas, seq, order, pin_lines)
-    area = max(float(np.sum(weights)), 1e-12)
+    area = max(float(np.sum(canvas.s ** 2)), 1e-12)
     stats = {"tried": len(order), "rerouted": rerouted,
              "woven_rms_before": round(float(np.sqrt(max(e0, 0.0) / area)), 5),
              "woven_rms": round(float(np.sqrt(max(canvas.error(), 0.0) / area)), 5)}

@@ -147,16 +147,28 @@ class WovenCanvas:
 
     def build(self, chords):
         """Draw ``chords`` on a fresh canvas; returns ``E``."""
-        from scipy.ndimage import correlate
-
         self.Sf[:] = 0.0
         self.uses[:] = 0
         for a, b in chords:
-            flat, cov, _, _ = self.footprint(int(a), int(b))
+            self.sketch(int(a), int(b))
+        return self.finish()
+
+    def sketch(self, a, b, sign=1):
+        """Add (``sign`` 1) or take away (-1) chord ``(a, b)``'s coverage on the fine canvas only; the
+        error is brought up to date by :meth:`finish`."""
+        flat, cov, _, _ = self.footprint(a, b)
+        if sign > 0:
             self.Sf[flat] += cov  # each fine pixel once per footprint
-            self.uses[a, b] += 1
-            if a != b:
-                self.uses[b, a] += 1
+        else:
+            self.Sf[flat] = np.maximum(self.Sf[flat] - cov, 0.0)
+        self.uses[a, b] += sign
+        if a != b:
+            self.uses[b, a] += sign
+
+    def finish(self):
+        """The darkness, the error and its slope of what the fine canvas holds; returns ``E``."""
+        from scipy.ndimage import correlate
+
         m, f = self.size, self.f
         self.D = np.minimum(self.Sf, 1.0).reshape(m, f, m, f).mean(axis=(1, 3), dtype=np.float64).ravel()
         x = self.s * (self.t - self.D)
