@@ -4,12 +4,13 @@ Prints wall time, CPU time (user + system of the child: on a shared machine
 the wall time also counts the time other jobs had the cores), peak memory (max
 RSS of the child) and the load average for
 
-* the default method (residual, refinement included), fitness and greedy
-  (ThreadTone's 1001 px), 300 pins, 401 px, auto lines, camera.png, with a
-  cold chord cache (an empty cache folder) and a warm one;
+* the default method (residual, polish included), the same with
+  ``--polish 0`` (what the polish costs), fitness and greedy (ThreadTone's
+  1001 px), 300 pins, 401 px, auto lines, camera.png, with a cold chord cache
+  (an empty cache folder) and a warm one;
 * the default method and fitness at 600 pins, 801 px (cold and warm).
 
-Usage: python benchmarks/bench_planner.py [IMAGE] [--repeat N]
+Usage: python benchmarks/bench_planner.py [IMAGE] [--repeat N] [--skip-600] [--methods residual,fitness,greedy]
 """
 
 import argparse
@@ -62,19 +63,22 @@ def main():
     ap.add_argument("image", nargs="?", default=str(DEFAULT_IMAGE))
     ap.add_argument("--repeat", type=int, default=3, help="warm runs per case (best and median printed)")
     ap.add_argument("--skip-600", action="store_true", help="skip the 600-pin, 801-px case")
+    ap.add_argument("--methods", default="residual,fitness,greedy", help="methods to run (comma-separated)")
     opts = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="stringbot-bench-"))
-    cases = [("residual", ["--pins", "300", "--size", "401"]), ("fitness", ["--pins", "300", "--size", "401"]),
-             ("greedy", ["--pins", "300", "--size", "1001"])]
+    cases = [("residual", ["--pins", "300", "--size", "401"]), ("residual", ["--pins", "300", "--size", "401",
+                                                                             "--polish", "0"]),
+             ("fitness", ["--pins", "300", "--size", "401"]), ("greedy", ["--pins", "300", "--size", "1001"])]
     if not opts.skip_600:
         cases += [("residual", ["--pins", "600", "--size", "801"]), ("fitness", ["--pins", "600", "--size", "801"])]
+    cases = [c for c in cases if c[0] in opts.methods.split(",")]
     print(f"image {opts.image}; {os.cpu_count()} cores; python {sys.version.split()[0]}")
-    print(f"{'case':<28} {'cache':<6} {'wall s':>7} {'cpu s':>6} {'peak MB':>8} {'load':>5}  summary")
+    print(f"{'case':<36} {'cache':<6} {'wall s':>7} {'cpu s':>6} {'peak MB':>8} {'load':>5}  summary")
     try:
         for method, extra in cases:
-            name = f"{method} {extra[1]} pins {extra[3]} px"
+            name = f"{method} {extra[1]} pins {extra[3]} px" + (" nopolish" if "--polish" in extra else "")
             args = [opts.image, "-o", str(work / "p.json"), "--method", method, *extra]
-            cache = work / f"cache-{method}-{extra[1]}-{extra[3]}"
+            cache = work / f"cache-{method}-{'-'.join(extra[1::2])}"
             shutil.rmtree(cache, ignore_errors=True)
             cache.mkdir()
             wall, cpu, out = run_once(args, cache)          # cold: empty cache folder
@@ -82,14 +86,14 @@ def main():
             shutil.rmtree(cache)
             cache.mkdir()
             peak = peak_of(args, cache)
-            print(f"{name:<28} {'cold':<6} {wall:7.2f} {cpu:6.2f} {peak:8.0f} {load:5.1f}  {out.split(' -> ')[0]}")
+            print(f"{name:<36} {'cold':<6} {wall:7.2f} {cpu:6.2f} {peak:8.0f} {load:5.1f}  {out.split(' -> ')[0]}")
             runs = []
             for _ in range(max(1, opts.repeat)):
                 runs.append(run_once(args, cache)[:2])
             peak = peak_of(args, cache)
             runs.sort()
             wall, cpu = runs[len(runs) // 2]
-            print(f"{name:<28} {'warm':<6} {wall:7.2f} {cpu:6.2f} {peak:8.0f} {os.getloadavg()[0]:5.1f}  "
+            print(f"{name:<36} {'warm':<6} {wall:7.2f} {cpu:6.2f} {peak:8.0f} {os.getloadavg()[0]:5.1f}  "
                   f"(best {runs[0][0]:.2f} s of {len(runs)})")
             sys.stdout.flush()
     finally:
