@@ -5,8 +5,9 @@ frame).  The planner keeps the drawing as woven under the thread model
 (:mod:`stringbot.planner.thread`): ``S``, the summed coverage of the threads
 drawn so far at the working size (a thread ``thread_mm / diameter_mm * size``
 pixels wide, anti-aliased, the same in every direction), and its darkness
-``D = 1 - exp(-S)`` (threads crossing at random leave gaps: coverage
-saturates, two threads on one spot are not twice as dark).  The error is
+``D = tanh(S)`` (coverage saturates: two threads on one spot are not twice
+as dark; ``tanh`` is what the thread model's fine rendering gives at a coarse
+pixel on average, see docs/planner.md).  The error is
 ``E = sum w (t - D)^2`` (``w``: 1 in the frame, up to 2 on important pixels,
 0 outside).
 
@@ -36,7 +37,8 @@ lead the thread to where the next ones do, so the run goes on until
 sequence is cut back to where ``E`` was lowest: another thread would no
 longer improve the picture as woven.
 
-The sequence then goes to :mod:`stringbot.planner.refine`.
+The sequence then goes to :mod:`stringbot.planner.refine` (a line count) or
+:mod:`stringbot.planner.polish` (``lines="auto"``).
 """
 
 import logging
