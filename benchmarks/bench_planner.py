@@ -71,6 +71,9 @@ def main():
              ("fitness", ["--pins", "300", "--size", "401"]), ("greedy", ["--pins", "300", "--size", "1001"])]
     if not opts.skip_600:
         cases += [("residual", ["--pins", "600", "--size", "801"]), ("fitness", ["--pins", "600", "--size", "801"])]
+    unknown = set(opts.methods.split(",")) - {"residual", "fitness", "greedy"}
+    if unknown:
+        raise SystemExit(f"--methods {opts.methods}: unknown {', '.join(sorted(unknown))}; expected residual, fitness, greedy")
     cases = [c for c in cases if c[0] in opts.methods.split(",")]
     print(f"image {opts.image}; {os.cpu_count()} cores; python {sys.version.split()[0]}")
     print(f"{'case':<36} {'cache':<6} {'wall s':>7} {'cpu s':>6} {'peak MB':>8} {'load':>5}  summary")

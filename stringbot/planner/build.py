@@ -222,6 +222,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         raise BadInput(f"--style, --beta, --gamma and -T are knobs of --method fitness; {method} has none of them")
     if fit and crop is not None:
         raise BadInput("--fit and --crop both choose the part of the picture to paint; give one of them")
+    if method != "residual" and (refine is not None or polish is not None):
+        given = " and ".join(f"--{n}" for n, v in (("refine", refine), ("polish", polish)) if v is not None)
+        raise BadInput(f"{given} {'are knobs' if ' and ' in given else 'is a knob'} of --method residual only "
+                       f"(not of {method}); leave {'them' if ' and ' in given else 'it'} out")
     if polish is None:
         polish = DEFAULTS["polish"] if lines == "auto" else 0
     if refine is None:

@@ -113,7 +113,7 @@ def polish_plan(seq, target, weights, space, width_px, *, budget, canvas=None):
     """
     seq = [int(p) for p in seq]
     if len(seq) < 3 or budget <= 0:
-        return seq, {"tried": 0, "rerouted": 0}, None
+        return seq, {"tried": 0, "rerouted": 0, "woven_rms_before": None, "woven_rms": None}, None
     if canvas is None:
         canvas = WovenCanvas(target, weights, space.pin_xy, width_px)
         canvas.build(list(zip(seq[:-1], seq[1:])))

@@ -75,13 +75,18 @@ def draw_woven(plan, *, size=1001, board=255, thread=0):
     """
     from .thread import composite, coverage
 
-    # threads overlap where they overlap at their own width: drawn on a canvas where the thread is about
-    # one pixel wide (as the as-woven error's 2048 px), then averaged down
+    # threads overlap where they overlap at their own width: drawn on the canvas the polish uses (the
+    # thread about one pixel wide; 2048 px for 0.25 mm on 500 mm), or finer for a large drawing, then
+    # averaged down; a plan just polished brings that canvas with it (the same drawing)
+    from .woven import GRID, fine_factor
+
     model = plan.thread_model()
-    k = max(1, min(int(math.ceil(1.0 / model.width_px(size) - 1e-9)), MAX_FINE // size))
+    side = GRID * fine_factor(model.width_px(GRID), GRID)
+    if side < 2 * size:
+        side = size * max(1, min(int(math.ceil(1.0 / model.width_px(size) - 1e-9)), MAX_FINE // size))
     fine = getattr(plan, "woven_cover", None)
-    if fine is None or fine.shape[0] < k * size:
-        fine = coverage(plan.chord_list(), plan.pin_xy, size=k * size, width_px=model.width_px(k * size))
+    if fine is None or fine.shape[0] != side:
+        fine = coverage(plan.chord_list(), plan.pin_xy, size=side, width_px=model.width_px(side))
     k = fine.shape[0] // size
     n = fine.shape[0] // k
     cov = fine[:n * k, :n * k].reshape(n, k, n, k).mean(axis=(1, 3)) if k > 1 else fine[:n, :n]

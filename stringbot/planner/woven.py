@@ -36,7 +36,7 @@ from .thread import SegmentStamp
 
 log = logging.getLogger(__name__)
 
-__all__ = ["WovenCanvas", "EYE_SIGMA", "MAX_FINE", "GRID"]
+__all__ = ["WovenCanvas", "EYE_SIGMA", "MAX_FINE", "GRID", "fine_factor"]
 
 #: the eye's blur: sigma as a fraction of the frame's side (the scorer's 2 px at 512 px)
 EYE_SIGMA = 2.0 / 512.0
@@ -46,6 +46,12 @@ GRID = 256
 MAX_FINE = 4096
 #: footprints kept (about 80 kB each on a 2048-px canvas)
 MAX_CACHED = 4000
+
+
+def fine_factor(width_px, m):
+    """Fine pixels per pixel of an ``m``-px grid on which a thread ``width_px`` grid pixels wide is about
+    one fine pixel wide (at most :data:`MAX_FINE` fine pixels in all)."""
+    return max(1, min(int(round(1.0 / float(width_px))), MAX_FINE // m))
 
 
 class WovenCanvas:
@@ -70,8 +76,7 @@ class WovenCanvas:
         m = target.shape[0]
         self.size = m
         self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
-        f = max(1, int(round(1.0 / float(width_px))))  # the thread about one fine pixel wide
-        f = max(1, min(f, MAX_FINE // m))
+        f = fine_factor(width_px, m)  # the thread about one fine pixel wide
         self.f, self.F = f, m * f
         self.Sf = np.zeros(self.F * self.F, dtype=np.float32)
         self._wf = float(width_px) * f  # the thread's width in fine pixels
@@ -80,7 +85,8 @@ class WovenCanvas:
         self.t = np.asarray(target, dtype=np.float64).ravel()
         self.s = np.sqrt(np.asarray(weights, dtype=np.float64).ravel())
         self.D = np.zeros(m * m)
-        # B: a Gaussian of sigma in pixels of the m grid, cut at two sigmas; B^2 its own square
+        # B: a Gaussian of sigma in pixels of the m grid (the scorer's sigma), cut at two sigmas (the
+        # scorer's filter goes on to four: E differs by about 0.1 %); B^2 its own square
         sg = float(sigma) * m
         r1 = max(1, int(math.ceil(2.0 * sg)))
         ax1 = np.arange(-r1, r1 + 1, dtype=np.float64)
