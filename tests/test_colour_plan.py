@@ -126,6 +126,9 @@ def test_colour_names_and_hex():
     assert parse_background("white") == "#ffffff" and parse_background("black") == "#000000"
     assert parse_colors("black, crimson ,#1f5bb5") == [threads()["black"], "#b22222", "#1f5bb5"]
     assert parse_colors("auto:3") == ("auto", 3)
+    # the British spelling names the same threads
+    assert parse_color("grey") == threads()["gray"] and parse_color("Dark Grey") == threads()["dark-gray"]
+    assert parse_color("light_grey") == threads()["light-gray"]
 
 
 @pytest.mark.parametrize("text, background, words", [

@@ -36,7 +36,8 @@ _HEX = re.compile(r"^#?([0-9a-fA-F]{6}|[0-9a-fA-F]{3})$")
 
 
 def _key(name):
-    return re.sub(r"[\s_\-]+", "", str(name).strip().lower())
+    """A colour name as looked up: case, spaces, dashes and underscores ignored, British "grey" as "gray"."""
+    return re.sub(r"[\s_\-]+", "", str(name).strip().lower()).replace("grey", "gray")
 
 
 @functools.lru_cache(maxsize=1)
