@@ -41,6 +41,13 @@ def canvas_for(g, space):
     return WovenCanvas(t, mask.astype(float), space.pin_xy, WIDTH), t, mask
 
 
+def polished_canvas(t, mask, space, chords):
+    """A canvas holding ``chords``, ready for :func:`polish_plan`."""
+    c = WovenCanvas(t, mask.astype(float), space.pin_xy, WIDTH)
+    c.build(chords)
+    return c
+
+
 def brute_error(canvas, chords, t, mask):
     """E from scratch: the chords' coverage on the fine canvas capped at 1, averaged to the grid, the
     error blurred by the canvas's own kernel."""
@@ -102,7 +109,7 @@ def test_polish_never_makes_the_woven_picture_worse_and_keeps_one_thread():
         seq.append(nxt)
     chords0 = list(zip(seq[:-1], seq[1:]))
     e0 = brute_error(canvas, chords0, t, mask)
-    out, stats, cover = polish_plan(seq, t, mask.astype(float), space, WIDTH, budget=len(seq))
+    out, stats, cover = polish_plan(polished_canvas(t, mask, space, chords0), seq, space, budget=len(seq))
     chords1 = list(zip(out[:-1], out[1:]))
     e1 = brute_error(canvas, chords1, t, mask)
     assert len(out) == len(seq) and out[0] == seq[0] and out[-1] == seq[-1]
@@ -117,7 +124,7 @@ def test_polish_never_makes_the_woven_picture_worse_and_keeps_one_thread():
     ref = np.minimum(coverage(chords1, space.pin_xy, size=cover.shape[0], width_px=WIDTH * canvas.f), 1.0)
     assert np.abs(cover - ref).max() < 3e-3  # the bulk drawing computes in float32
     # the same input, the same plan
-    again, _, _ = polish_plan(seq, t, mask.astype(float), space, WIDTH, budget=len(seq))
+    again, _, _ = polish_plan(polished_canvas(t, mask, space, chords0), seq, space, budget=len(seq))
     assert again == out
 
 

@@ -347,7 +347,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
         report("polishing")
         woven = _woven_canvas(target, w, space, model)
         woven.build(list(zip(seq[:-1], seq[1:])))
-        seq, ps, cover = polish_plan(seq, None, None, space, None, budget=polish, canvas=woven)
+        seq, ps, cover = polish_plan(woven, seq, space, budget=polish)
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
         return seq, out, cover
     return seq, out, None

@@ -140,11 +140,12 @@ class _PinLines:
     """Per pin, the line points of every chord from it, built the first time the pin is visited.
 
     ``nearest``: points on their nearest pixel (else truncated, as ThreadTone does); ``spacing``:
-    pixels between points (1: ThreadTone's).
+    pixels between points (1: ThreadTone's); ``keep``: False builds them again each time (for a caller
+    that keeps them itself).
     """
 
-    def __init__(self, space, size, *, nearest=False, spacing=1.0):
-        self.space, self.size, self.nearest, self.spacing = space, size, nearest, spacing
+    def __init__(self, space, size, *, nearest=False, spacing=1.0, keep=True):
+        self.space, self.size, self.nearest, self.spacing, self.keep = space, size, nearest, spacing, keep
         if nearest:
             self.rc = pin_pixels(space.pin_xy, size)
         else:  # ThreadTone truncates its pin coordinates: int(r + 1 + r cos a), sampled one pixel lower
@@ -154,14 +155,17 @@ class _PinLines:
 
     def get_with_counts(self, p):
         """``(others, flat, starts, counts)``: the pins reachable from ``p`` and their chords' points."""
-        if p not in self.cache:
+        row = self.cache.get(p)
+        if row is None:
             others = np.flatnonzero(self.space.index[p] >= 0)
             r0, c0 = self.rc[p]
             starts, flat = line_samples(r0, c0, self.rc[others, 0], self.rc[others, 1], self.size,
                                         nearest=self.nearest, spacing=self.spacing)
             counts = np.diff(np.append(starts, len(flat))).astype(np.float32)
-            self.cache[p] = (others, flat, starts, counts)
-        return self.cache[p]
+            row = (others, flat, starts, counts)
+            if self.keep:
+                self.cache[p] = row
+        return row
 
     def get(self, p):
         return self.get_with_counts(p)[:3]

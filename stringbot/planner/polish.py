@@ -22,7 +22,6 @@ import logging
 import numpy as np
 
 from .greedy import _PinLines
-from .woven import WovenCanvas
 
 log = logging.getLogger(__name__)
 
@@ -84,23 +83,17 @@ def polish_pins(canvas, seq, order, pin_lines):
     return rerouted
 
 
-def polish_plan(seq, target, weights, space, width_px, *, budget, canvas=None):
+def polish_plan(canvas, seq, space, *, budget):
     """Polish a pin sequence against the picture as woven (see the module notes).
 
     Parameters
     ----------
+    canvas : WovenCanvas
+        Holds ``seq`` drawn (:meth:`WovenCanvas.build`); kept in step with the changes.
     seq : list of int
-    target : ndarray of float, shape (m, m)
-        Darkness wanted on the error's grid (None with ``canvas``).
-    weights : ndarray of float, shape (m, m)
-        Pixel weights (0 outside the frame; None with ``canvas``).
     space : ChordSpace
-    width_px : float
-        Thread width in pixels of the ``m`` grid (None with ``canvas``).
     budget : int
         Pins to revisit.
-    canvas : WovenCanvas, optional
-        One that holds ``seq`` drawn already (:meth:`WovenCanvas.build`); else it is drawn here.
 
     Returns
     -------
@@ -114,11 +107,8 @@ def polish_plan(seq, target, weights, space, width_px, *, budget, canvas=None):
     seq = [int(p) for p in seq]
     if len(seq) < 3 or budget <= 0:
         return seq, {"tried": 0, "rerouted": 0, "woven_rms_before": None, "woven_rms": None}, None
-    if canvas is None:
-        canvas = WovenCanvas(target, weights, space.pin_xy, width_px)
-        canvas.build(list(zip(seq[:-1], seq[1:])))
     e0 = canvas.error()
-    pin_lines = _PinLines(space, canvas.size, nearest=True, spacing=POLISH_SPACING)
+    pin_lines = _PinLines(space, canvas.size, nearest=True, spacing=POLISH_SPACING, keep=False)
     order = badness_order(canvas, seq, pin_lines)[:budget]
     rerouted = polish_pins(canvas, seq, order, pin_lines)
     area = max(float(np.sum(canvas.s ** 2)), 1e-12)

@@ -51,7 +51,7 @@ from .thread import SegmentStamp
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Canvas", "residual_sequence", "best_start", "repeat_gains", "PATIENCE"]
+__all__ = ["Canvas", "residual_sequence", "best_start", "repeat_gains", "sum_sparse", "PATIENCE"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -87,6 +87,27 @@ def repeat_gains():
         total = np.mean(curves, axis=0)
         _GAINS = np.maximum(np.minimum.accumulate(np.diff(total)), 1e-3)
     return _GAINS
+
+
+def sum_sparse(parts, acc, mark):
+    """The sum of sparse vectors: ``(pix, total)``, each index once.
+
+    Parameters
+    ----------
+    parts : list of (ndarray of int, ndarray of float)
+        Indices (each once within a part) and their values.
+    acc, mark : ndarray of float64 / int64
+        Scratch as long as the dense vector; ``acc`` all zeros, and left so.
+    """
+    for idx, val in parts:
+        acc[idx] += val
+    every = np.concatenate([idx for idx, _ in parts])
+    order = np.arange(len(every))
+    mark[every] = order
+    pix = every[mark[every] == order]
+    total = acc[pix]
+    acc[pix] = 0.0
+    return pix, total
 
 
 class Canvas:
@@ -166,16 +187,7 @@ class Canvas:
 
     def _union(self, parts):
         """``(pix, dS)``: the pixels several signed footprints touch (each once) and their coverage change."""
-        acc, mark = self._acc, self._mark
-        for (flat, cov), s in parts:
-            acc[flat] += s * cov  # a footprint has each pixel once
-        flat = np.concatenate([fp[0] for fp, _ in parts])
-        order = np.arange(len(flat))
-        mark[flat] = order
-        pix = flat[mark[flat] == order]
-        dS = acc[pix]
-        acc[pix] = 0.0
-        return pix, dS
+        return sum_sparse([(flat, s * cov) for (flat, cov), s in parts], self._acc, self._mark)
 
     def delta(self, chords_out=(), chords_in=()):
         """Exact change of ``E`` if ``chords_out`` were removed and ``chords_in`` added (nothing changes)."""

@@ -31,17 +31,18 @@ import math
 
 import numpy as np
 
-from .residual import repeat_gains
+from .residual import repeat_gains, sum_sparse
+from .scoring import WOVEN_SIGMA, WOVEN_SIZE
 from .thread import SegmentStamp
 
 log = logging.getLogger(__name__)
 
 __all__ = ["WovenCanvas", "EYE_SIGMA", "MAX_FINE", "GRID", "fine_factor"]
 
-#: the eye's blur: sigma as a fraction of the frame's side (the scorer's 2 px at 512 px)
-EYE_SIGMA = 2.0 / 512.0
-#: side of the grid the error is measured on (at most the working size): the eye's blur is 1 px there
-GRID = 256
+#: the eye's blur: sigma as a fraction of the frame's side (the as-woven scorer's, 2 px at 512 px)
+EYE_SIGMA = WOVEN_SIGMA / WOVEN_SIZE
+#: side of the grid the error is measured on (at most the working size): half the scorer's, the blur 1 px
+GRID = WOVEN_SIZE // 2
 #: largest side of the fine canvas (its coverage is float32: 64 MB)
 MAX_FINE = 4096
 #: footprints kept (about 80 kB each on a 2048-px canvas)
@@ -153,28 +154,17 @@ class WovenCanvas:
 
     def build(self, chords):
         """Draw ``chords`` on a fresh canvas; returns ``E``."""
+        from scipy.ndimage import correlate
+
         self.Sf[:] = 0.0
         self.uses[:] = 0
         for a, b in chords:
-            self.sketch(int(a), int(b))
-        return self.finish()
-
-    def sketch(self, a, b, sign=1):
-        """Add (``sign`` 1) or take away (-1) chord ``(a, b)``'s coverage on the fine canvas only; the
-        error is brought up to date by :meth:`finish`."""
-        flat, cov, _, _ = self.footprint(a, b)
-        if sign > 0:
+            a, b = int(a), int(b)
+            flat, cov, _, _ = self.footprint(a, b)
             self.Sf[flat] += cov  # each fine pixel once per footprint
-        else:
-            self.Sf[flat] = np.maximum(self.Sf[flat] - cov, 0.0)
-        self.uses[a, b] += sign
-        if a != b:
-            self.uses[b, a] += sign
-
-    def finish(self):
-        """The darkness, the error and its slope of what the fine canvas holds; returns ``E``."""
-        from scipy.ndimage import correlate
-
+            self.uses[a, b] += 1
+            if a != b:
+                self.uses[b, a] += 1
         m, f = self.size, self.f
         self.D = np.minimum(self.Sf, 1.0).reshape(m, f, m, f).mean(axis=(1, 3), dtype=np.float64).ravel()
         x = self.s * (self.t - self.D)
@@ -215,16 +205,8 @@ class WovenCanvas:
             self.Sf[flat] = old
         if not parts:
             return None, None
-        ff = float(self.f * self.f)
-        if len(parts) == 1:
-            return parts[0][0], parts[0][1] / ff
-        acc = self._acc
-        for cu, d in parts:
-            acc[cu] += d
-        cp, _ = self._unique(np.concatenate([cu for cu, _ in parts]))
-        dD = acc[cp] / ff
-        acc[cp] = 0.0
-        return cp, dD
+        cp, dC = parts[0] if len(parts) == 1 else sum_sparse(parts, self._acc, self._mark)
+        return cp, dC / float(self.f * self.f)
 
     def _change(self, cp, dD, *, blur2=False):
         """``(dE, v, h)``: the exact change of ``E`` for ``dD`` on grid pixels ``cp``; ``h = B^2 v``
@@ -274,11 +256,14 @@ class WovenCanvas:
     # -- scores ------------------------------------------------------------------------------------------
 
     def scores(self, pin_lines, a):
-        """``(others, score)``: the mean of ``u G`` along each chord from pin ``a`` (its error slope)."""
+        """``(others, score)``: the mean of ``u G`` along each chord from pin ``a`` (its error slope),
+        times the share of a thread a copy of it adds (:func:`~stringbot.planner.residual.repeat_gains`).
+
+        ``pin_lines`` should not keep its points (``keep=False``): they are kept here, on the padded grid.
+        """
         row = self._rows.get(a)
         if row is None:
             others, pix, starts, counts = pin_lines.get_with_counts(a)
-            pin_lines.cache.pop(a, None)  # kept here, on the padded grid, instead
             row = self._rows[a] = (others, self.pidx[pix], starts, counts)
         others, pp, starts, counts = row
         sc = np.add.reduceat(self.g.take(pp), starts) / counts
