@@ -11,8 +11,7 @@ the opposite colour of its thread, the pins in gray.
 
 import numpy as np
 
-from .chords import line_pixels, pin_pixels
-from .frames import frame_ends
+from .frames import chord_pixels, frame_ends
 from .palette import hex_to_rgb, to_linear, to_srgb
 
 __all__ = ["colour_growth_frames"]
@@ -39,19 +38,14 @@ def colour_growth_frames(plan, *, frames=100, size=400):
     (ndarray, int)
         The frame and the number of chords it shows.
     """
-    chords = plan.chord_list()
+    flat, starts, ring = chord_pixels(plan, size)
     layer_of = np.concatenate([np.full(max(len(lay.sequence) - 1, 0), k, dtype=np.int64)
                                for k, lay in enumerate(plan.layers)] or [np.zeros(0, dtype=np.int64)])
     colors = [_linear(lay.color) for lay in plan.layers]
-    c = np.asarray(chords, dtype=np.int64).reshape(-1, 2)
-    rc = pin_pixels(plan.pin_xy, size)
-    counts, flat = line_pixels(rc[c[:, 0], 0], rc[c[:, 0], 1], rc[c[:, 1], 0], rc[c[:, 1], 1], size)
-    starts = np.concatenate([[0], np.cumsum(counts)])
     keep = 1.0 - min(1.0, size / 1001.0)        # what a pixel keeps under one thread (as growth_frames)
     canvas = np.tile(_linear(plan.background), (size * size, 1))
-    ring = rc[:, 0] * size + rc[:, 1]
     done = 0
-    for end in frame_ends(len(chords), frames):
+    for end in frame_ends(len(starts) - 1, frames):
         a = done
         while a < end:                          # the new chords, layer by layer
             k = layer_of[a]

@@ -12,7 +12,7 @@ import numpy as np
 
 from .chords import line_pixels, pin_pixels
 
-__all__ = ["growth_frames", "gif_bytes", "mp4_bytes", "frame_ends", "Mp4Unavailable"]
+__all__ = ["growth_frames", "gif_bytes", "mp4_bytes", "frame_ends", "chord_pixels", "Mp4Unavailable"]
 
 
 class Mp4Unavailable(RuntimeError):
@@ -23,6 +23,17 @@ def frame_ends(chords, frames):
     """How many chords each frame shows: ``frames`` counts rising evenly to all of them."""
     frames = max(1, min(int(frames), chords)) if chords else 1
     return [int(round(chords * (k + 1) / frames)) for k in range(frames)]
+
+
+def chord_pixels(plan, size):
+    """Where ``plan``'s chords lie on a ``size``-px frame: ``(flat, starts, ring)``.
+
+    ``flat[starts[i]:starts[i + 1]]`` are chord ``i``'s pixels (winding order), ``ring`` the pins' pixels.
+    """
+    c = np.asarray(plan.chord_list(), dtype=np.int64).reshape(-1, 2)
+    rc = pin_pixels(plan.pin_xy, size)
+    counts, flat = line_pixels(rc[c[:, 0], 0], rc[c[:, 0], 1], rc[c[:, 1], 0], rc[c[:, 1], 1], size)
+    return flat, np.concatenate([[0], np.cumsum(counts)]), rc[:, 0] * size + rc[:, 1]
 
 
 def growth_frames(plan, *, frames=100, size=400):
@@ -41,19 +52,14 @@ def growth_frames(plan, *, frames=100, size=400):
     (ndarray, int)
         The frame and the number of chords it shows.
     """
-    chords = plan.chord_list()
-    c = np.asarray(chords, dtype=np.int64).reshape(-1, 2)
-    rc = pin_pixels(plan.pin_xy, size)
-    counts, flat = line_pixels(rc[c[:, 0], 0], rc[c[:, 0], 1], rc[c[:, 1], 0], rc[c[:, 1], 1], size)
-    starts = np.concatenate([[0], np.cumsum(counts)])
+    flat, starts, ring = chord_pixels(plan, size)
     # a thread covers about a pixel of the 1001 px drawing: smaller frames see it as a share of a pixel,
     # and a pixel crossed n times keeps (1 - share) ** n of its white
     share = min(1.0, size / 1001.0)
     shade = (255.0 * (1.0 - share) ** np.arange(256)).astype(np.uint8)
     crossed = np.zeros(size * size, dtype=np.int64)
-    ring = rc[:, 0] * size + rc[:, 1]
     done = 0
-    for end in frame_ends(len(chords), frames):
+    for end in frame_ends(len(starts) - 1, frames):
         np.add.at(crossed, flat[starts[done]:starts[end]], 1)
         done = end
         gray = shade[np.minimum(crossed, 255)]
