@@ -2,52 +2,21 @@
 pty; ``machines check`` names the setting, ``wind`` refuses it before anything moves, and after
 ``machines check --apply`` it winds the plan exactly (the simulator's record)."""
 
-import json
-import os
-import signal
-import subprocess
-import time
-
 import pytest
 
 from stringbot.planner import write_plan
 from stringbot.winding import read_journal
 
 from test_wind_cli import error_lines, run
-from test_wind_pty import STRINGBOT
+from test_wind_pty import Simulator
 from test_wind_sim import small_plan
 
 pytestmark = pytest.mark.timeout(120)
 
 
-class MisSetSimulator:
+def MisSetSimulator(tmp_path, machine, *settings):
     """``stringbot simulate --machine M --pty P --record R --set S...`` in a subprocess."""
-
-    def __init__(self, tmp_path, machine, *settings):
-        self.pty, self.record = tmp_path / "pty", tmp_path / "rec.json"
-        cmd = STRINGBOT + ["simulate", "--machine", machine, "--pty", str(self.pty), "--record", str(self.record)]
-        for s in settings:
-            cmd += ["--set", s]
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        deadline = time.monotonic() + 30
-        while not os.path.exists(os.path.realpath(self.pty)) or not self.pty.is_symlink():
-            if self.proc.poll() is not None:
-                raise RuntimeError("simulator died: " + self.proc.stderr.read())
-            assert time.monotonic() < deadline, "simulator did not start"
-            time.sleep(0.05)
-
-    def stop(self):
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-
-    def world(self):
-        rec = json.loads(self.record.read_text())
-        return [w["pin"] for w in rec["wraps"]], rec["collisions"]
+    return Simulator(tmp_path, machine, settings=settings)
 
 
 @pytest.fixture
@@ -92,14 +61,14 @@ def test_mis_set_machine_is_named_refused_then_fixed_and_winds_exactly(tmp_path,
     assert "nothing was moved or wound" in lines[1] and "--no-check" in lines[1] and "--apply" in lines[1]
     assert "resume" not in err
     assert read_journal(journal).done == []
-    assert sim.world() == ([], [])
+    assert sim.wraps() == ([], [])
 
     code, out, err = run(["machines", "check", machine, "--port", port, "--apply", "--yes"], capsys)
     assert code == 0, err
     code, out, err = run(wind, capsys)
     assert code == 0, err
     sim.stop()
-    assert sim.world() == (plan.sequence, [])
+    assert sim.wraps() == (plan.sequence, [])
 
 
 def test_wind_refuses_a_mis_set_machine_before_anything_moves(tmp_path, capsys, simulator):
@@ -115,7 +84,7 @@ def test_wind_refuses_a_mis_set_machine_before_anything_moves(tmp_path, capsys, 
     assert "$110 X max rate (ring) is 5000" in lines[1] and "send $110=7200" in lines[1]
     assert "nothing was moved or wound" in lines[2] and "--no-check" in lines[2]
     assert read_journal(journal).done == []
-    assert sim.world() == ([], [])
+    assert sim.wraps() == ([], [])
 
 
 def test_without_the_check_the_mis_set_machine_winds_wrong(tmp_path, capsys, simulator):
@@ -126,7 +95,7 @@ def test_without_the_check_the_mis_set_machine_winds_wrong(tmp_path, capsys, sim
                           "--yes", "--no-check", "--journal", str(tmp_path / "j")], capsys)
     assert code == 0, err                       # the firmware does what it is told...
     sim.stop()
-    pins, collisions = sim.world()
+    pins, collisions = sim.wraps()
     assert pins != plan.sequence and collisions  # ...and the ring turns 0.9 degree for each one asked
 
 

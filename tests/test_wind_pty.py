@@ -23,7 +23,7 @@ STRINGBOT = [sys.executable, "-c", "import sys; from stringbot.cli import main; 
 class Simulator:
     """``stringbot simulate`` in a subprocess, serving one machine on a pty."""
 
-    def __init__(self, tmp_path, machine, faults=None, realtime=False):
+    def __init__(self, tmp_path, machine, faults=None, realtime=False, settings=()):
         self.pty = tmp_path / "pty"
         self.record = tmp_path / "rec.json"
         cmd = STRINGBOT + ["simulate", "--machine", machine, "--pty", str(self.pty),
@@ -32,6 +32,8 @@ class Simulator:
             cmd += ["--faults", faults]
         if realtime:
             cmd += ["--realtime"]
+        for setting in settings:  # a mis-set machine: `simulate --set NAME=VALUE`
+            cmd += ["--set", setting]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 30
         while not self.pty.exists():
