@@ -362,10 +362,10 @@ def _woven_canvas(target, w, space, model):
     size = target.shape[0]
     m = min(GRID, size)
     if m != size:
-        from skimage.transform import resize
+        from .resample import resize_square
 
-        target = resize(target, (m, m), order=1, anti_aliasing=True)
-        w = resize(w, (m, m), order=1, anti_aliasing=True)
+        target = resize_square(target, m)
+        w = resize_square(w, m)
     inside = frame_mask(m, space.frame)
     return WovenCanvas(np.where(inside, target, 0.0), np.where(inside, w, 0.0), space.pin_xy, model.width_px(m))
 

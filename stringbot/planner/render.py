@@ -91,9 +91,9 @@ def draw_woven(plan, *, size=1001, board=255, thread=0):
     n = fine.shape[0] // k
     cov = fine[:n * k, :n * k].reshape(n, k, n, k).mean(axis=(1, 3)) if k > 1 else fine[:n, :n]
     if n != size:
-        from skimage.transform import resize
+        from .resample import resize_square
 
-        cov = resize(cov, (size, size), order=1, anti_aliasing=False)
+        cov = resize_square(cov, size, anti_aliasing=False)
     return np.clip(np.rint(composite(cov, board=float(board), thread=float(thread))), 0, 255).astype(np.uint8)
 
 

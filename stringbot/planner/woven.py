@@ -72,8 +72,6 @@ class WovenCanvas:
     """
 
     def __init__(self, target, weights, pin_xy, width_px, *, sigma=EYE_SIGMA):
-        from scipy.ndimage import correlate
-
         m = target.shape[0]
         self.size = m
         self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
@@ -104,9 +102,10 @@ class WovenCanvas:
         self._kw1 = np.outer(k1, k1).ravel()
         r, c = np.divmod(np.arange(m * m), m)
         self.pidx = ((r + rad) * P + (c + rad)).astype(np.int32)  # each grid pixel on the padded grid
-        pad = np.zeros((P, P))
-        pad[rad:rad + m, rad:rad + m] = (self.s * self.t).reshape(m, m)
-        self.G = correlate(pad, np.outer(k2, k2), mode="constant").ravel()
+        # B^2 of a picture on the grid, as the padded grid: T x T^T (T: the 1-D kernel, grid -> padded)
+        off = np.arange(m)[None, :] + rad - np.arange(P)[:, None]
+        self._T = np.where(np.abs(off) <= rad, k2[np.clip(off + rad, 0, 2 * rad)], 0.0)
+        self.G = self._blur2_grid(self.s * self.t)
         self.E = float(np.dot(self.s * self.t, self.G[self.pidx]))
         self.u = np.zeros(P * P)  # s (1 - D): how much darker one more thread still makes a pixel
         self.u[self.pidx] = self.s
@@ -154,8 +153,6 @@ class WovenCanvas:
 
     def build(self, chords):
         """Draw ``chords`` on a fresh canvas; returns ``E``."""
-        from scipy.ndimage import correlate
-
         self.Sf[:] = 0.0
         self.uses[:] = 0
         for a, b in chords:
@@ -168,14 +165,16 @@ class WovenCanvas:
         m, f = self.size, self.f
         self.D = np.minimum(self.Sf, 1.0).reshape(m, f, m, f).mean(axis=(1, 3), dtype=np.float64).ravel()
         x = self.s * (self.t - self.D)
-        pad = np.zeros((self.P, self.P))
-        pad[self.rad:self.rad + m, self.rad:self.rad + m] = x.reshape(m, m)
-        k = self._kw.reshape(2 * self.rad + 1, 2 * self.rad + 1)
-        self.G = correlate(pad, k, mode="constant").ravel()
+        self.G = self._blur2_grid(x)
         self.E = float(np.dot(x, self.G[self.pidx]))
         self.u[self.pidx] = self.s * (1.0 - self.D)
         self.g = self.u * self.G
         return self.E
+
+    def _blur2_grid(self, x):
+        """``B^2 x`` on the padded grid (flat) of ``x`` on the grid (zero around it)."""
+        m = self.size
+        return (self._T @ np.asarray(x, dtype=np.float64).reshape(m, m) @ self._T.T).ravel()
 
     def error(self):
         """``E = || B (s (t - D)) ||^2``."""

@@ -1,0 +1,90 @@
+"""Resizing a square picture as ``skimage.transform.resize(order=1)`` does, with numpy alone.
+
+The default plan resizes twice (the target to the polish's grid, the preview
+to its size); scipy.ndimage and skimage.transform take about 0.3-0.4 s to
+import, a tenth of the whole command.  Both steps are separable and linear,
+so each is a small matrix per axis:
+
+* anti-aliasing (when shrinking): a Gaussian of sigma ``(n_in / n_out - 1) / 2``
+  input pixels, cut at 4 sigma, mirrored at the edges (``scipy.ndimage``'s
+  ``mirror``, skimage's ``reflect``);
+* linear interpolation at ``(i + 0.5) n_in / n_out - 0.5`` (``grid_mode``),
+  mirrored at the edges.
+
+``tests/test_resample.py`` checks the result against skimage to 1e-9.
+"""
+
+import numpy as np
+
+__all__ = ["resize_square", "resize_taps"]
+
+
+def _mirror(idx, n):
+    """Indices reflected into ``0..n-1`` about the edge pixels' centres (``d c b | a b c d | c b a``)."""
+    if n == 1:
+        return np.zeros_like(idx)
+    period = 2 * (n - 1)
+    idx = np.abs(idx) % period
+    return np.where(idx >= n, period - idx, idx)
+
+
+def resize_taps(n_in, n_out, *, anti_aliasing):
+    """One axis's resize as taps: output ``i`` is ``sum_k weight[i, k] * input[index[i, k]]``.
+
+    Parameters
+    ----------
+    n_in, n_out : int
+        Sizes before and after.
+    anti_aliasing : bool
+        Blur before shrinking (as skimage does).
+
+    Returns
+    -------
+    index : ndarray of int64, shape (n_out, k)
+    weight : ndarray of float64, shape (n_out, k)
+    """
+    n_in, n_out = int(n_in), int(n_out)
+    scale = n_in / n_out
+    x = (np.arange(n_out) + 0.5) * scale - 0.5
+    x0 = np.floor(x).astype(np.int64)
+    fr = x - x0
+    pos = np.stack([x0, x0 + 1], axis=1)  # unmirrored: the blur is mirrored about the same edges
+    wts = np.stack([1.0 - fr, fr], axis=1)
+    sigma = max(0.0, (scale - 1.0) / 2.0)
+    if anti_aliasing and sigma > 0:
+        r = int(4.0 * sigma + 0.5)
+        off = np.arange(-r, r + 1)
+        k = np.exp(-0.5 * (off / sigma) ** 2)
+        k /= k.sum()
+        # the blurred value at a mirrored position is the blur at the position it mirrors
+        pos = (_mirror(pos, n_in)[:, :, None] + off[None, None, :]).reshape(n_out, -1)
+        wts = (wts[:, :, None] * k[None, None, :]).reshape(n_out, -1)
+    return _mirror(pos, n_in), wts
+
+
+def _along_rows(a, idx, w):
+    out = np.zeros((idx.shape[0],) + a.shape[1:])
+    for k in range(idx.shape[1]):
+        out += w[:, k, None] * a[idx[:, k]]
+    return out
+
+
+def resize_square(image, size, *, anti_aliasing=True):
+    """``skimage.transform.resize(image, (size, size), order=1, anti_aliasing=...)`` of a square 2-D array.
+
+    Parameters
+    ----------
+    image : ndarray of float, shape (n, n)
+    size : int
+    anti_aliasing : bool
+
+    Returns
+    -------
+    ndarray of float64, shape (size, size)
+    """
+    a = np.asarray(image, dtype=np.float64)
+    if a.ndim != 2 or a.shape[0] != a.shape[1]:
+        raise ValueError(f"image of shape {a.shape}; expected a square")
+    idx, w = resize_taps(a.shape[0], size, anti_aliasing=anti_aliasing)
+    out = _along_rows(_along_rows(a, idx, w).T, idx, w).T
+    return np.clip(out, a.min(initial=np.inf), a.max(initial=-np.inf))

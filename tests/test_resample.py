@@ -1,0 +1,43 @@
+"""The numpy resize of the default plan's path is skimage's resize, without its import time."""
+
+import numpy as np
+import pytest
+from skimage.transform import resize
+
+from stringbot.planner.resample import resize_square
+
+
+@pytest.mark.parametrize("n, m, anti_aliasing", [(401, 256, True), (801, 256, True), (1024, 1001, False),
+                                                 (2048, 1001, True), (33, 7, True), (5, 2, True), (3, 40, False),
+                                                 (256, 256, True)])
+def test_matches_skimage(n, m, anti_aliasing):
+    a = np.random.default_rng(n + m).random((n, n))
+    ours = resize_square(a, m, anti_aliasing=anti_aliasing)
+    assert ours.shape == (m, m)
+    np.testing.assert_allclose(ours, resize(a, (m, m), order=1, anti_aliasing=anti_aliasing), atol=1e-9)
+
+
+def test_refuses_a_non_square():
+    with pytest.raises(ValueError, match="expected a square"):
+        resize_square(np.zeros((4, 5)), 3)
+
+
+def test_plan_path_does_not_import_scipy_ndimage_or_skimage_transform(tmp_path):
+    """The default plan (polish and preview included) leaves out the slow imports."""
+    import subprocess
+    import sys
+
+    img = tmp_path / "dots.png"
+    from PIL import Image
+
+    pic = np.full((64, 64), 255, np.uint8)
+    pic[20:40, 20:40] = 0
+    Image.fromarray(pic).save(img)
+    code = ("import sys; from stringbot.cli import main\n"
+            "try:\n    main([" + ", ".join(repr(x) for x in ["plan", str(img), "-o", str(tmp_path / "p.json"),
+                                                             "--pins", "60", "--size", "64", "--polish", "50"]) + "])\n"
+            "except SystemExit as e:\n    assert not e.code, e.code\n"
+            "print(sorted(m for m in sys.modules if m.startswith(('scipy.ndimage', 'skimage.transform'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"
