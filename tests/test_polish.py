@@ -15,6 +15,7 @@ from stringbot.planner.fitness import frame_mask
 from stringbot.planner.greedy import _PinLines
 from stringbot.planner.polish import polish_plan
 from stringbot.planner.render import draw_woven
+from stringbot.planner.resample import resize_square
 from stringbot.planner.scoring import woven_error
 from stringbot.planner.thread import coverage
 from stringbot.planner.woven import WovenCanvas
@@ -141,7 +142,7 @@ def test_auto_lines_are_polished_and_a_line_count_is_not():
     # scorer sees it gets better
     plain = plan_picture("x.png", picture=pic, pins=60, size=101, polish=0, refine=0)
     assert len(plain.sequence) == len(auto.sequence) and plain.sequence != auto.sequence
-    gray = np.asarray(np.kron(g, np.ones((6, 6)))[:512, :512], dtype=float)  # the picture at 512 px (crude)
+    gray = resize_square(np.asarray(g, dtype=float), 512)  # the picture at the scorer's 512 px
     e_plain = woven_error(plain.chord_list(), plain.pin_xy, gray, frame="circle")
     e_auto = woven_error(auto.chord_list(), auto.pin_xy, gray, frame="circle")
     assert e_auto < e_plain

@@ -7,9 +7,16 @@ exit code: :class:`~stringbot.errors.BadInput` and bad options -> 2,
 """
 
 import logging
+import os
 import sys
 
 import click
+
+# The planner's linear algebra is small: one BLAS thread.  More only spin between calls, taking the
+# second core from the polish's twin process (stringbot.planner.woven_helper).  A setting of the
+# user's own wins; numpy is not imported yet here.
+if not any(os.environ.get(v) for v in ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")):
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 from .. import __version__
 from ..errors import BadInput, Interrupted, MachineFailure

@@ -331,26 +331,41 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
     # points about every 1/400 of the frame along each chord: at 801 px every other pixel (the mean
     # residual along a chord needs no more, and this halves the work of large sizes)
     pin_lines = _PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / 400.0))
-    t = time.perf_counter()
-    seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines)
-    t_choose = time.perf_counter() - t
-    err = canvas.error()
-    report("refining")
-    seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
-    area = float(w.sum())
-    out = {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
-           "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
-           "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
-    del canvas, pin_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
+    helper = None
     if polish:
+        from .woven_helper import WovenHelper, two_cores
+
+        if two_cores():  # a helper process draws the polish's canvas while the threads are chosen
+            helper = WovenHelper(lambda: _woven_canvas(target, w, space, model))
+    try:
+        t = time.perf_counter()
+        seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines,
+                                on_chord=None if helper is None else helper.add)
+        t_choose = time.perf_counter() - t
+        err = canvas.error()
+        report("refining")
+        seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
+        area = float(w.sum())
+        out = {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
+               "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
+               "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
+        del canvas, pin_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
+        if not polish:
+            return seq, out, None
         t = time.perf_counter()
         report("polishing")
-        woven = _woven_canvas(target, w, space, model)
-        woven.build(list(zip(seq[:-1], seq[1:])))
-        seq, ps, cover = polish_plan(woven, seq, space, budget=polish)
+        done = None if helper is None else helper.finish(seq, space, polish)
+        out["polish_processes"] = 1 if done is None else 2
+        if done is None:
+            woven = _woven_canvas(target, w, space, model)
+            woven.build(list(zip(seq[:-1], seq[1:])))
+            done = polish_plan(woven, seq, space, budget=polish)
+        seq, ps, cover = done
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
         return seq, out, cover
-    return seq, out, None
+    finally:
+        if helper is not None:
+            helper.close()
 
 
 def _woven_canvas(target, w, space, model):

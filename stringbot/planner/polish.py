@@ -14,7 +14,10 @@ on the horse and the camera, at a sixth more time.)
 
 The pins revisited are the ``budget`` whose chords draw most where the picture
 is already darker than wanted (a fixed number, so that the same picture
-always gives the same plan).
+always gives the same plan).  They are revisited two at a time: the two
+proposals of a round are made against the drawing before the round ahead of
+it is settled, so that on two cores two processes make them at once
+(:mod:`stringbot.planner.woven_helper`) and reach the same plan.
 """
 
 import logging
@@ -25,7 +28,7 @@ from .greedy import _PinLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["polish_plan", "polish_pins", "badness_order", "POLISH_SPACING"]
+__all__ = ["polish_plan", "polish_pins", "candidate", "propose", "settle", "badness_order", "POLISH_SPACING"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
 POLISH_SPACING = 2.0
@@ -46,8 +49,72 @@ def badness_order(canvas, seq, pin_lines):
     return [int(k) for k in np.argsort(means[:-1] + means[1:], kind="stable") + 1]
 
 
-def polish_pins(canvas, seq, order, pin_lines):
-    """Revisit pins ``order`` (indices into ``seq``, inner ones) in turn; ``seq`` is changed in place.
+def candidate(canvas, seq, k, pin_lines, scratch):
+    """The pin to reroute pin ``k`` through: the one whose two chords (from ``seq[k - 1]`` and to
+    ``seq[k + 1]``) have the highest error slope; None when there is none."""
+    from_a, from_c = scratch
+    a, p, c = seq[k - 1], seq[k], seq[k + 1]
+    oa, sa = canvas.scores(pin_lines, a)
+    oc, sc = canvas.scores(pin_lines, c)
+    from_a.fill(-np.inf)
+    from_a[oa] = sa
+    from_c.fill(-np.inf)
+    from_c[oc] = sc
+    total = from_a + from_c
+    total[[a, c, p]] = -np.inf
+    q = int(np.argmax(total))
+    return q if np.isfinite(total[q]) else None
+
+
+def propose(canvas, seq, k, pin_lines, scratch):
+    """The reroute of pin ``k`` worth trying: ``(k, a, p, c, q)`` when going through
+    :func:`candidate` ``q`` instead of ``p = seq[k]`` (between ``a`` and ``c``) lowers the error by
+    the estimate (which writes nothing), else None."""
+    q = candidate(canvas, seq, k, pin_lines, scratch)
+    if q is None:
+        return None
+    a, p, c = seq[k - 1], seq[k], seq[k + 1]
+    new = [(a, q), (q, c)]
+    if canvas.estimate(chords_out=[(a, p), (p, c)], chords_in=new) < 0.0:
+        return (int(k), int(a), int(p), int(c), q)
+    canvas.forget(new)
+    return None
+
+
+def settle(canvas, seq, proposal):
+    """Make a proposal of :func:`propose` if its pins are still there and the exact error drops
+    (else leave the drawing as it was); ``seq`` is changed in place.  Returns 1 if made, else 0."""
+    if proposal is None:
+        return 0
+    k, a, p, c, q = proposal
+    old, new = [(a, p), (p, c)], [(a, q), (q, c)]
+    if (seq[k - 1], seq[k], seq[k + 1]) == (a, p, c):
+        if canvas.apply(chords_out=old, chords_in=new) < 0.0:  # exact
+            seq[k] = q
+            canvas.forget(old)
+            return 1
+        canvas.apply(chords_out=new, chords_in=old)  # the estimate erred where the chords overlap
+    canvas.forget(new)
+    return 0
+
+
+def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
+    """Revisit pins ``order`` (indices into ``seq``, inner ones) two at a time; ``seq`` is changed in place.
+
+    Round ``r`` proposes a reroute for pins ``order[2r]`` and ``order[2r + 1]``
+    (:func:`propose`) against the drawing as it is, then settles round
+    ``r - 1``'s two proposals in turn (:func:`settle`: each kept only if the
+    exact error drops).  So the two proposals of a round can be made in two
+    processes at once, each settling both (``partner``), and the plan is the
+    same pin for pin.
+
+    Parameters
+    ----------
+    partner : optional
+        The other process (:class:`~stringbot.planner.woven_helper.Partner`):
+        ``partner.swap(pair, make)`` makes this process's proposal of the round
+        (``make(k)``), sends it and returns the previous round's two;
+        ``partner.last()`` the last round's.  None: both are made here.
 
     Returns
     -------
@@ -55,35 +122,25 @@ def polish_pins(canvas, seq, order, pin_lines):
         How many pins were rerouted.
     """
     npins = len(canvas.pin_xy)
-    from_a = np.empty(npins)
-    from_c = np.empty(npins)
+    scratch = (np.empty(npins), np.empty(npins))
+
+    def make(k):
+        return propose(canvas, seq, k, pin_lines, scratch)
+
     rerouted = 0
-    for k in order:
-        a, p, c = seq[k - 1], seq[k], seq[k + 1]
-        oa, sa = canvas.scores(pin_lines, a)
-        oc, sc = canvas.scores(pin_lines, c)
-        from_a.fill(-np.inf)
-        from_a[oa] = sa
-        from_c.fill(-np.inf)
-        from_c[oc] = sc
-        total = from_a + from_c
-        total[[a, c, p]] = -np.inf
-        q = int(np.argmax(total))
-        if not np.isfinite(total[q]):
-            continue
-        old, new = [(a, p), (p, c)], [(a, q), (q, c)]
-        if canvas.estimate(chords_out=old, chords_in=new) < 0.0:
-            if canvas.apply(chords_out=old, chords_in=new) < 0.0:  # exact
-                seq[k] = q
-                rerouted += 1
-                canvas.forget(old)
-                continue
-            canvas.apply(chords_out=new, chords_in=old)  # the estimate erred where the chords overlap
-        canvas.forget(new)
+    pending = []
+    for r in range(0, len(order), 2):
+        pair = order[r:r + 2]
+        if partner is None:
+            made, pending = pending, [make(k) for k in pair]
+        else:
+            made = partner.swap(pair, make)
+        rerouted += sum(settle(canvas, seq, prop) for prop in made)
+    rerouted += sum(settle(canvas, seq, prop) for prop in (pending if partner is None else partner.last()))
     return rerouted
 
 
-def polish_plan(canvas, seq, space, *, budget):
+def polish_plan(canvas, seq, space, *, budget, partner=None):
     """Polish a pin sequence against the picture as woven (see the module notes).
 
     Parameters
@@ -94,6 +151,10 @@ def polish_plan(canvas, seq, space, *, budget):
     space : ChordSpace
     budget : int
         Pins to revisit.
+    partner : callable, optional
+        ``partner(canvas, seq, order, pin_lines)`` returns a partner for
+        :func:`polish_pins` (a forked process: :func:`~stringbot.planner.woven_helper.twin`),
+        or None to polish alone.
 
     Returns
     -------
@@ -110,7 +171,12 @@ def polish_plan(canvas, seq, space, *, budget):
     e0 = canvas.error()
     pin_lines = _PinLines(space, canvas.size, nearest=True, spacing=POLISH_SPACING, keep=False)
     order = badness_order(canvas, seq, pin_lines)[:budget]
-    rerouted = polish_pins(canvas, seq, order, pin_lines)
+    mate = None if partner is None else partner(canvas, seq, order, pin_lines)
+    try:
+        rerouted = polish_pins(canvas, seq, order, pin_lines, partner=mate)
+    finally:
+        if mate is not None:
+            mate.close()
     area = max(float(np.sum(canvas.s ** 2)), 1e-12)
     stats = {"tried": len(order), "rerouted": rerouted,
              "woven_rms_before": round(float(np.sqrt(max(e0, 0.0) / area)), 5),

@@ -255,7 +255,8 @@ def best_start(canvas, space, pin_lines):
     return pin
 
 
-def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_lines=None, patience=PATIENCE):
+def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_lines=None, patience=PATIENCE,
+                      on_chord=None):
     """Choose a pin sequence by the darkness residual (see the module notes).
 
     Parameters
@@ -272,6 +273,9 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     pin_lines : _PinLines, optional
         Shared per-pin line points (built here when not given).
     patience : int
+    on_chord : callable, optional
+        ``on_chord((a, b))`` for each chord chosen, as it is (some may be cut
+        back at the end).
 
     Returns
     -------
@@ -301,6 +305,8 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
             break
         nxt = int(others[k])
         err += canvas.apply(chords_in=[(cur, nxt)])
+        if on_chord is not None:
+            on_chord((cur, nxt))
         seq.append(nxt)
         cur = nxt
         if len(seq) % 200 == 0:

@@ -1,0 +1,228 @@
+"""The polish on two cores: its canvas drawn while the threads are chosen, and its pins revisited in pairs.
+
+The polish (:mod:`stringbot.planner.polish`) is most of a default plan's
+time.  On a machine with two cores (:func:`two_cores`):
+
+* :class:`WovenHelper` forks a helper process before the threads are
+  chosen.  The chooser sends it each chord as it is chosen, and the helper
+  stamps the chord's footprint on the polish's fine canvas meanwhile; when
+  the sequence is done it draws it from the footprints it already has and
+  polishes it.
+* For the polish, the helper forks a twin (:func:`twin`).  The polish goes
+  in rounds of two pins (:func:`~stringbot.planner.polish.polish_pins`):
+  each process makes the proposal for one pin of the round, they swap
+  them, and both settle the same two proposals in the same order, so both
+  hold the same drawing after every round.  The proposals of a round are
+  made while the round before is settled, so neither waits for the other.
+
+Every footprint is what stamping it anywhere else gives and every decision
+is made on the same drawing in both processes, so the plan is the one a
+single process makes, pin for pin (``tests/test_woven_helper.py``).
+Anything that goes wrong in a helper costs only time: a twin that is gone
+makes the helper fail, and a helper that fails or dies leaves the polish to
+the planner's own process (:meth:`WovenHelper.finish` returns None).  The
+helpers never report progress nor write to the terminal; they end with
+``os._exit``.
+"""
+
+import logging
+import os
+import time
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+__all__ = ["WovenHelper", "Partner", "twin", "two_cores"]
+
+#: chords the chooser sends at a time
+BATCH = 64
+
+
+def two_cores():
+    """True where the polish uses helper processes: ``os.fork`` exists and two cores are ours;
+    ``$STRINGBOT_PROCESSES`` ``1`` never, ``2`` always (where ``os.fork`` exists)."""
+    want = os.environ.get("STRINGBOT_PROCESSES", "").strip()
+    if not hasattr(os, "fork") or want == "1":
+        return False
+    if want == "2":
+        return True
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return cores >= 2
+
+
+def _fork(body):
+    """Run ``body()`` in a forked child that ends with ``os._exit`` (0 when it returned); the pid."""
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child's coverage is not collected
+        code = 1
+        try:
+            from .progress import reporting
+
+            with reporting(None):  # the terminal is the parent's
+                body()
+            code = 0
+        except BaseException as exc:  # noqa: BLE001 - a helper only ever fails quietly
+            log.debug("helper process failed: %r", exc)
+        finally:
+            os._exit(code)
+    return pid
+
+
+class Partner:
+    """One side of a polish in two processes (:func:`~stringbot.planner.polish.polish_pins`).
+
+    Each round, this side makes the proposal for pin ``pair[side]``, sends it,
+    and gets the other side's proposal of the round before: both sides then
+    settle the same two proposals in the same order, so both hold the same
+    drawing.  The messages are a few numbers: a footprint the other side
+    proposed is stamped here again when it is settled.
+    """
+
+    def __init__(self, conn, side, pid=None):
+        self.conn, self.side, self.pid = conn, side, pid
+        self._mine = None
+        self._first = True
+
+    def swap(self, pair, make):
+        mine = make(pair[self.side]) if self.side < len(pair) else None
+        self.conn.send(mine)
+        out = self.last()
+        self._mine, self._first = mine, False
+        return out
+
+    def last(self):
+        if self._first:
+            return []
+        theirs = self.conn.recv()  # EOFError if the other side is gone: the polish fails here
+        return [self._mine, theirs] if self.side == 0 else [theirs, self._mine]
+
+    def close(self):
+        self.conn.close()
+        if self.pid is not None:
+            os.waitpid(self.pid, 0)
+            self.pid = None
+
+
+def twin(canvas, seq, order, pin_lines):
+    """Fork a twin that polishes the other half of each round with :func:`~stringbot.planner.polish.polish_pins`
+    (and then ends); returns this side's :class:`Partner`."""
+    from multiprocessing.connection import Pipe
+
+    from .polish import polish_pins
+
+    here, there = Pipe()
+
+    def body():  # pragma: no cover - runs in the child
+        here.close()
+        polish_pins(canvas, seq, order, pin_lines, partner=Partner(there, 1))
+
+    pid = _fork(body)
+    there.close()
+    return Partner(here, 0, pid)
+
+
+class WovenHelper:
+    """A helper process that holds the polish's canvas, drawing chords while they are chosen.
+
+    Parameters
+    ----------
+    make_canvas : callable
+        ``make_canvas() -> WovenCanvas``, called in the helper.
+    """
+
+    def __init__(self, make_canvas):
+        from multiprocessing.connection import Pipe
+
+        self._conn, child = Pipe()
+        self._pending = []
+        self.failed = False
+
+        def serve():  # pragma: no cover - runs in the child
+            self._conn.close()
+            _serve(child, make_canvas)
+
+        self.pid = _fork(serve)
+        child.close()
+
+    def _send(self, msg):
+        if not self.failed:
+            try:
+                self._conn.send(msg)
+            except OSError:
+                self.failed = True
+
+    def add(self, chord):
+        """A chord chosen (a pair of pins); sent on in batches of :data:`BATCH`."""
+        self._pending.append(chord)
+        if len(self._pending) >= BATCH:
+            self._send(("chords", np.asarray(self._pending, dtype=np.int32).reshape(-1, 2)))
+            self._pending = []
+
+    def finish(self, seq, space, budget):
+        """Polish ``seq`` in the helper.
+
+        Returns
+        -------
+        (seq, stats, cover) as :func:`~stringbot.planner.polish.polish_plan`, or None when the helper failed.
+        """
+        if self._pending:
+            self._send(("chords", np.asarray(self._pending, dtype=np.int32).reshape(-1, 2)))
+            self._pending = []
+        self._send(("polish", [int(p) for p in seq], space, int(budget)))
+        out = None
+        try:
+            if not self.failed:
+                msg = self._conn.recv()
+                if msg[0] == "done":
+                    _, seq1, stats, shape = msg
+                    cover = None
+                    if shape is not None:
+                        cover = np.frombuffer(self._conn.recv_bytes(), dtype=np.float32).reshape(shape)
+                    out = seq1, stats, cover
+        except (EOFError, OSError):
+            pass
+        finally:
+            self.close()
+        if out is None:
+            log.warning("polish: the helper process failed; polishing here")
+        return out
+
+    def close(self):
+        """End the helper (it ends itself when the pipe closes)."""
+        if self.pid is not None:
+            self._conn.close()
+            os.waitpid(self.pid, 0)
+            self.pid = None
+
+
+def _serve(conn, make_canvas):  # pragma: no cover - runs in the child
+    """The helper: stamp chords as they come; polish on ``("polish", seq, space, budget)``."""
+    from .polish import polish_plan
+
+    canvas = make_canvas()
+    stamped = 0
+    while True:
+        try:
+            msg = conn.recv()
+        except EOFError:
+            return
+        if msg[0] == "chords":
+            for a, b in msg[1].tolist():
+                canvas.footprint(a, b)
+            stamped += len(msg[1])
+        elif msg[0] == "polish":
+            _, seq, space, budget = msg
+            t = time.perf_counter()
+            canvas.build(list(zip(seq[:-1], seq[1:])))
+            t1 = time.perf_counter()
+            seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=twin)
+            stats = dict(stats, canvas_seconds=round(t1 - t, 3), pins_seconds=round(time.perf_counter() - t1, 3),
+                         stamped_early=stamped)
+            conn.send(("done", seq, stats, None if cover is None else cover.shape))
+            if cover is not None:
+                conn.send_bytes(np.ascontiguousarray(cover, dtype=np.float32).data)
+            return

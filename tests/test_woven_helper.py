@@ -1,0 +1,85 @@
+"""The polish on two cores: the same plan as on one, and a helper that fails costs only time."""
+
+import logging
+import os
+
+import numpy as np
+import pytest
+
+from stringbot.planner import woven_helper
+from stringbot.planner.build import plan_picture
+
+from planner_helpers import picture
+from test_polish import horse_like
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="the helper processes are forked")
+
+
+def _plan(monkeypatch, processes, **kw):
+    monkeypatch.setenv("STRINGBOT_PROCESSES", str(processes))
+    return plan_picture("x.png", picture=picture(horse_like(301)), pins=60, size=301, polish=160, **kw)
+
+
+def _no_children_left():
+    """True when this process has no child processes (running or not waited for)."""
+    try:
+        os.waitpid(-1, os.WNOHANG)
+    except ChildProcessError:
+        return True
+    return False
+
+
+def test_two_processes_make_the_plan_one_makes(monkeypatch):
+    one = _plan(monkeypatch, 1)
+    two = _plan(monkeypatch, 2)
+    assert one.stats["polish_processes"] == 1 and two.stats["polish_processes"] == 2
+    assert one.stats["polish"]["rerouted"] > 0
+    assert two.sequence == one.sequence
+    assert two.stats["polish"]["woven_rms"] == one.stats["polish"]["woven_rms"]
+    # the helper drew the chosen threads while they were chosen, and hands back the polish's canvas
+    assert two.stats["polish"]["stamped_early"] >= len(two.sequence) - 1
+    np.testing.assert_array_equal(two.woven_cover, one.woven_cover)
+    assert _no_children_left()
+
+
+def test_a_helper_that_fails_leaves_the_polish_here(monkeypatch, caplog):
+    one = _plan(monkeypatch, 1)
+
+    def broken(conn, make_canvas):
+        raise RuntimeError("the helper breaks")
+
+    monkeypatch.setattr(woven_helper, "_serve", broken)
+    with caplog.at_level(logging.WARNING, logger="stringbot.planner.woven_helper"):
+        two = _plan(monkeypatch, 2)
+    assert "helper process failed" in caplog.text
+    assert two.stats["polish_processes"] == 1
+    assert two.sequence == one.sequence
+    assert _no_children_left()
+
+
+def test_a_twin_that_dies_leaves_the_polish_here(monkeypatch):
+    one = _plan(monkeypatch, 1)
+
+    def dying_twin(canvas, seq, order, pin_lines):
+        from multiprocessing.connection import Pipe
+
+        here, there = Pipe()
+        pid = woven_helper._fork(lambda: os._exit(3))  # gone before its first proposal
+        there.close()
+        return woven_helper.Partner(here, 0, pid)
+
+    monkeypatch.setattr(woven_helper, "twin", dying_twin)
+    two = _plan(monkeypatch, 2)
+    assert two.stats["polish_processes"] == 1
+    assert two.sequence == one.sequence
+    assert _no_children_left()
+
+
+def test_the_number_of_processes_follows_the_setting(monkeypatch):
+    monkeypatch.setenv("STRINGBOT_PROCESSES", "1")
+    assert not woven_helper.two_cores()
+    monkeypatch.setenv("STRINGBOT_PROCESSES", "2")
+    assert woven_helper.two_cores()
+    monkeypatch.delenv("STRINGBOT_PROCESSES")
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    assert woven_helper.two_cores() == (cores >= 2)
