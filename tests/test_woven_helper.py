@@ -45,7 +45,7 @@ def test_two_processes_make_the_plan_one_makes(monkeypatch):
 def test_a_helper_that_fails_leaves_the_polish_here(monkeypatch, caplog):
     one = _plan(monkeypatch, 1)
 
-    def broken(conn, make_canvas):
+    def broken(conn, make_canvas, space):
         raise RuntimeError("the helper breaks")
 
     monkeypatch.setattr(woven_helper, "_serve", broken)

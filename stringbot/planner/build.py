@@ -336,7 +336,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
         from .woven_helper import WovenHelper, two_cores
 
         if two_cores():  # a helper process draws the polish's canvas while the threads are chosen
-            helper = WovenHelper(lambda: _woven_canvas(target, w, space, model))
+            helper = WovenHelper(lambda: _woven_canvas(target, w, space, model), space)
     try:
         t = time.perf_counter()
         seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines,

@@ -28,10 +28,15 @@ from .greedy import _PinLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["polish_plan", "polish_pins", "candidate", "propose", "settle", "badness_order", "POLISH_SPACING"]
+__all__ = ["polish_plan", "polish_pins", "polish_lines", "candidate", "propose", "settle", "badness_order", "POLISH_SPACING"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
 POLISH_SPACING = 2.0
+
+
+def polish_lines(space, canvas):
+    """The chords' points the polish scores along (each pin's row is kept by the canvas)."""
+    return _PinLines(space, canvas.size, nearest=True, spacing=POLISH_SPACING, keep=False)
 
 
 def badness_order(canvas, seq, pin_lines):
@@ -169,7 +174,7 @@ def polish_plan(canvas, seq, space, *, budget, partner=None):
     if len(seq) < 3 or budget <= 0:
         return seq, {"tried": 0, "rerouted": 0, "woven_rms_before": None, "woven_rms": None}, None
     e0 = canvas.error()
-    pin_lines = _PinLines(space, canvas.size, nearest=True, spacing=POLISH_SPACING, keep=False)
+    pin_lines = polish_lines(space, canvas)
     order = badness_order(canvas, seq, pin_lines)[:budget]
     mate = None if partner is None else partner(canvas, seq, order, pin_lines)
     try:

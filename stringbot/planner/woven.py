@@ -254,16 +254,20 @@ class WovenCanvas:
 
     # -- scores ------------------------------------------------------------------------------------------
 
+    def row(self, pin_lines, a):
+        """``(others, pp, starts, counts)``: pin ``a``'s chords' points on the padded grid (kept)."""
+        row = self._rows.get(a)
+        if row is None:
+            others, pix, starts, counts = pin_lines.get_with_counts(a)
+            row = self._rows[a] = (others, self.pidx[pix], starts, counts)
+        return row
+
     def scores(self, pin_lines, a):
         """``(others, score)``: the mean of ``u G`` along each chord from pin ``a`` (its error slope),
         times the share of a thread a copy of it adds (:func:`~stringbot.planner.residual.repeat_gains`).
 
         ``pin_lines`` should not keep its points (``keep=False``): they are kept here, on the padded grid.
         """
-        row = self._rows.get(a)
-        if row is None:
-            others, pix, starts, counts = pin_lines.get_with_counts(a)
-            row = self._rows[a] = (others, self.pidx[pix], starts, counts)
-        others, pp, starts, counts = row
+        others, pp, starts, counts = self.row(pin_lines, a)
         sc = np.add.reduceat(self.g.take(pp), starts) / counts
         return others, sc * self.gains[np.minimum(self.uses[a, others], len(self.gains) - 1)]

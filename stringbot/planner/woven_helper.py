@@ -132,9 +132,11 @@ class WovenHelper:
     ----------
     make_canvas : callable
         ``make_canvas() -> WovenCanvas``, called in the helper.
+    space : ChordSpace
+        The pins (the helper lays out the polish's chord points while it waits for chords).
     """
 
-    def __init__(self, make_canvas):
+    def __init__(self, make_canvas, space):
         from multiprocessing.connection import Pipe
 
         self._conn, child = Pipe()
@@ -143,7 +145,7 @@ class WovenHelper:
 
         def serve():  # pragma: no cover - runs in the child
             self._conn.close()
-            _serve(child, make_canvas)
+            _serve(child, make_canvas, space)
 
         self.pid = _fork(serve)
         child.close()
@@ -199,14 +201,22 @@ class WovenHelper:
             self.pid = None
 
 
-def _serve(conn, make_canvas):  # pragma: no cover - runs in the child
-    """The helper: stamp chords as they come; polish on ``("polish", seq, space, budget)``."""
-    from .polish import polish_plan
+def _serve(conn, make_canvas, space):  # pragma: no cover - runs in the child
+    """The helper: stamp chords as they come, and in between lay out the polish's chord points;
+    polish on ``("polish", seq, space, budget)``."""
+    from .polish import polish_lines, polish_plan
 
     canvas = make_canvas()
+    lines = polish_lines(space, canvas)
+    idle = iter(range(space.pins))  # the pins whose chord points are still to lay out
     stamped = 0
     while True:
         try:
+            while not conn.poll():
+                a = next(idle, None)
+                if a is None:
+                    break
+                canvas.row(lines, a)
             msg = conn.recv()
         except EOFError:
             return
