@@ -152,9 +152,19 @@ class WovenCanvas:
     # -- the whole drawing -------------------------------------------------------------------------------
 
     def build(self, chords):
-        """Draw ``chords`` on a fresh canvas; returns ``E``."""
+        """Draw ``chords`` on a fresh canvas; returns ``E``.
+
+        The same as :meth:`draw` of ``chords`` in any number of parts in turn
+        (on a fresh canvas), then :meth:`finish`: the same float operations in
+        the same order.
+        """
         self.Sf[:] = 0.0
         self.uses[:] = 0
+        self.draw(chords)
+        return self.finish()
+
+    def draw(self, chords):
+        """Add chords' coverage to the fine canvas (``D`` and the error wait for :meth:`finish`)."""
         for a, b in chords:
             a, b = int(a), int(b)
             flat, cov, _, _ = self.footprint(a, b)
@@ -162,6 +172,9 @@ class WovenCanvas:
             self.uses[a, b] += 1
             if a != b:
                 self.uses[b, a] += 1
+
+    def finish(self):
+        """The grid, the error and its slope from the fine canvas as drawn; returns ``E``."""
         m, f = self.size, self.f
         self.D = np.minimum(self.Sf, 1.0).reshape(m, f, m, f).mean(axis=(1, 3), dtype=np.float64).ravel()
         x = self.s * (self.t - self.D)

@@ -205,11 +205,12 @@ def _serve(conn, make_canvas, space):  # pragma: no cover - runs in the child
     """The helper: stamp chords as they come, and in between lay out the polish's chord points;
     polish on ``("polish", seq, space, budget)``."""
     from .polish import polish_lines, polish_plan
+    from .residual import PATIENCE
 
     canvas = make_canvas()
     lines = polish_lines(space, canvas)
     idle = iter(range(space.pins))  # the pins whose chord points are still to lay out
-    stamped = 0
+    chosen, drawn = [], 0  # chords chosen so far, and how many of them are drawn on the fine canvas
     while True:
         try:
             while not conn.poll():
@@ -223,15 +224,25 @@ def _serve(conn, make_canvas, space):  # pragma: no cover - runs in the child
         if msg[0] == "chords":
             for a, b in msg[1].tolist():
                 canvas.footprint(a, b)
-            stamped += len(msg[1])
+                chosen.append((a, b))
+            # a chord more than PATIENCE back is in the plan (an automatic run is cut back by fewer):
+            # drawn now, in the plan's order, as a fresh build would
+            upto = max(drawn, len(chosen) - PATIENCE)
+            canvas.draw(chosen[drawn:upto])
+            drawn = upto
         elif msg[0] == "polish":
             _, seq, space, budget = msg
             t = time.perf_counter()
-            canvas.build(list(zip(seq[:-1], seq[1:])))
+            final = list(zip(seq[:-1], seq[1:]))
+            if final[:drawn] == chosen[:drawn]:
+                canvas.draw(final[drawn:])
+                canvas.finish()
+            else:  # the sequence changed after it was chosen (refined): drawn afresh
+                canvas.build(final)
             t1 = time.perf_counter()
             seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=twin)
             stats = dict(stats, canvas_seconds=round(t1 - t, 3), pins_seconds=round(time.perf_counter() - t1, 3),
-                         stamped_early=stamped)
+                         drawn_early=drawn)
             conn.send(("done", seq, stats, None if cover is None else cover.shape))
             if cover is not None:
                 conn.send_bytes(np.ascontiguousarray(cover, dtype=np.float32).data)
