@@ -82,7 +82,6 @@ def propose(canvas, seq, k, pin_lines, scratch):
     new = [(a, q), (q, c)]
     if canvas.estimate(chords_out=[(a, p), (p, c)], chords_in=new) < 0.0:
         return (int(k), int(a), int(p), int(c), q)
-    canvas.forget(new)
     return None
 
 
@@ -96,10 +95,8 @@ def settle(canvas, seq, proposal):
     if (seq[k - 1], seq[k], seq[k + 1]) == (a, p, c):
         if canvas.apply(chords_out=old, chords_in=new) < 0.0:  # exact
             seq[k] = q
-            canvas.forget(old)
             return 1
         canvas.apply(chords_out=new, chords_in=old)  # the estimate erred where the chords overlap
-    canvas.forget(new)
     return 0
 
 

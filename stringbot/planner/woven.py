@@ -45,8 +45,9 @@ EYE_SIGMA = WOVEN_SIGMA / WOVEN_SIZE
 GRID = WOVEN_SIZE // 2
 #: largest side of the fine canvas (its coverage is float32: 64 MB)
 MAX_FINE = 4096
-#: footprints kept (about 80 kB each on a 2048-px canvas)
-MAX_CACHED = 4000
+#: footprints kept (about 60 kB each on a 2048-px canvas): the drawing's chords and the chords tried
+#: (tried again often: the same pin's best way round comes up again)
+MAX_CACHED = 5000
 
 
 def fine_factor(width_px, m):
@@ -125,20 +126,17 @@ class WovenCanvas:
         key = (a, b) if a < b else (b, a)
         fp = self._fp.get(key)
         if fp is None:
-            if len(self._fp) >= MAX_CACHED:
-                self._fp.clear()  # a footprint is stamped again exactly as it was
+            if len(self._fp) >= MAX_CACHED:  # chords tried and not drawn go first
+                for k in [k for k in self._fp if self.uses[k] == 0]:
+                    del self._fp[k]
+                if len(self._fp) >= MAX_CACHED // 2:
+                    self._fp.clear()  # a footprint is stamped again exactly as it was
             flat, cov = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])
             F, f = self.F, self.f
             coarse = (flat // (F * f)) * self.size + (flat % F) // f
             cu, inv = self._unique(coarse)
             fp = self._fp[key] = (flat.astype(np.int32), cov.astype(np.float32), inv, cu)
         return fp
-
-    def forget(self, chords):
-        """Drop the cached footprints of chords not drawn (a change tried and not made)."""
-        for a, b in chords:
-            if self.uses[a, b] == 0:
-                self._fp.pop((a, b) if a < b else (b, a), None)
 
     def _unique(self, idx):
         """``(u, inv)``: the distinct grid pixels of ``idx`` and where each entry is in ``u``."""
