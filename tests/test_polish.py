@@ -134,7 +134,7 @@ def test_auto_lines_are_polished_and_a_line_count_is_not():
     pic = picture(g)
     auto = plan_picture("x.png", picture=pic, pins=60, size=101)
     fixed = plan_picture("x.png", picture=pic, pins=60, size=101, lines=200)
-    assert auto.parameters["polish"] == 1200 and auto.parameters["refine"] == 0
+    assert auto.parameters["polish"] == 1000 and auto.parameters["refine"] == 0
     assert auto.stats["polish"]["rerouted"] > 0
     assert auto.stats["polish"]["woven_rms"] < auto.stats["polish"]["woven_rms_before"]
     assert fixed.parameters["polish"] == 0 and fixed.parameters["refine"] == 300 and "polish" not in fixed.stats

@@ -9,6 +9,9 @@ import click
 from ..errors import BadInput
 from . import cli, log
 
+#: side of the preview `plan` writes (as woven)
+PREVIEW_SIZE = 1001
+
 
 class _Lines(click.ParamType):
     name = "N|auto"
@@ -70,7 +73,7 @@ class _Lines(click.ParamType):
               help="Residual: pins the pixel refinement revisits (0: none) [default: 300, or 0 when polishing].")
 @click.option("--polish", type=int, default=None,
               help="Residual: pins the as-woven polish revisits: each change judged by the piece as woven, seen "
-                   "from a step away (0: none) [default: 1200 with --lines auto, 0 with a line count].")
+                   "from a step away (0: none) [default: 1000 with --lines auto, 0 with a line count].")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
@@ -134,12 +137,18 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                              lines=lines, start_pin=start_pin, method=method, disconnected=disconnected,
                              importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
                              T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
-                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish)
+                             diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish,
+                             preview=PREVIEW_SIZE)
     finally:
         shown.close()
     if machine is not None:
         p.parameters["machine"] = machine
-    png = png_bytes(draw_woven(p, size=1001))
+    est = None
+    if mach is not None and p.connected:  # while the polish's twin may still be drawing the preview
+        from ..motion import estimate
+
+        est = estimate(p, mach)
+    png = png_bytes(draw_woven(p, size=PREVIEW_SIZE))
     write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""
@@ -152,9 +161,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
         if not p.connected:
             click.echo(f"machine {mach.name}: a disconnected chord set cannot be wound; no machine-time estimate")
         else:
-            from ..motion import estimate, format_duration
+            from ..motion import format_duration
 
-            est = estimate(p, mach)
             click.echo(f"machine {mach.name}: about {format_duration(est.seconds)} of winding, "
                        f"{est.thread_m:.1f} m of thread")
 

@@ -39,7 +39,7 @@ __all__ = ["plan_picture", "auto_lines", "check_knobs", "style_candidates", "thr
 #: The paper's defaults (section 4); alpha: see docs/planner.md ("alpha").  beta, gamma and T are
 #: those of the ``detail`` style; ``fill`` uses :data:`FILL`.
 DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
-            "iterations": 25, "refine": 300, "polish": 1200, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
+            "iterations": 25, "refine": 300, "polish": 1000, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
 #: ThreadTone's working size: a picture of radius 500 px.
@@ -48,6 +48,11 @@ MIN_SIZE, MAX_SIZE = 32, 2001
 MAX_LINES = 100_000
 METHODS = ("residual", "fitness", "greedy")
 STYLES = ("auto", "detail", "fill")
+#: Points per frame side at which the residual choice samples each chord: a plan with a line count is
+#: judged pixel by pixel at the working size (every pixel at 401 px); the first draft of a plan to be
+#: polished needs half as many (the polish reworks it against the piece as woven, scoring chords every
+#: 1/128 of the frame): 0.1-0.2 s less, as-woven error within 1 % (docs/planner.md, "Speed").
+CHOOSE_POINTS, CHOOSE_POINTS_POLISHED = 400, 200
 #: The ``fill`` style: the paper's regularisation weights times 30 and a sharp tanh.
 FILL = {"beta": 150.0, "gamma": 300.0, "T": 1.0}
 
@@ -146,7 +151,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
                  picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
-                 diameter_mm=None, thread_mm=None, fit=False, refine=None, polish=None):
+                 diameter_mm=None, thread_mm=None, fit=False, refine=None, polish=None, preview=None):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -190,10 +195,14 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         300 when there is no polish, else 0 (the polish does it better).
     polish : int or None
         Residual only: pins the as-woven polish revisits
-        (:mod:`stringbot.planner.polish`; 0: none); None: 1200 with
+        (:mod:`stringbot.planner.polish`; 0: none); None: 1000 with
         ``lines="auto"``, 0 with a line count (the paper's SSIM at a given
         line count rewards the pixel-level drawing, which the polish trades
         for the piece as seen).
+    preview : int or None
+        The side of the drawing as woven the caller will make
+        (:func:`~stringbot.planner.render.draw_woven`, black on white): a
+        polish on two cores draws it meanwhile (the plan's ``woven_drawings``).
 
     Returns
     -------
@@ -260,11 +269,11 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
               "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
               "importance": str(importance) if importance is not None else None}
-    chords = woven_cover = None
+    chords = woven_cover = woven_drawings = None
     if method == "residual":
-        seq, extra, woven_cover = _residual_run(space, pic, mask, weights, lines if lines == "auto" else k, model,
-                                                start_pin=None if auto_start else start_pin, refine=refine,
-                                                polish=polish)
+        seq, extra, woven_cover, woven_drawings = _residual_run(
+            space, pic, mask, weights, lines if lines == "auto" else k, model,
+            start_pin=None if auto_start else start_pin, refine=refine, polish=polish, preview=preview)
         params["start_pin"] = int(seq[0])
         params.update(refine=refine, polish=polish, thread_px=round(model.width_px(size), 4))
         stats.update(extra)
@@ -311,10 +320,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                 pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
                 connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])],
-                woven_cover=woven_cover)
+                woven_cover=woven_cover, woven_drawings=woven_drawings)
 
 
-def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine, polish):
+def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None):
     """The default method: residual choice under the thread model, then refinement and polish."""
     from .greedy import _PinLines
     from .polish import polish_plan
@@ -328,15 +337,20 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
                        "expected a picture with some dark parts")
     w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
     canvas = Canvas(target, w, space.pin_xy, model.width_px(size))
-    # points about every 1/400 of the frame along each chord: at 801 px every other pixel (the mean
-    # residual along a chord needs no more, and this halves the work of large sizes)
-    pin_lines = _PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / 400.0))
+    # points about every 1/400 of the frame along each chord (at 801 px every other pixel: the mean
+    # residual along a chord needs no more, and this halves the work of large sizes); every 1/200 for
+    # a plan to be polished (see CHOOSE_POINTS_POLISHED)
+    points = CHOOSE_POINTS_POLISHED if polish else CHOOSE_POINTS
+    pin_lines = _PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / points))
     helper = None
     if polish:
         from .woven_helper import WovenHelper, two_cores
 
         if two_cores():  # a helper process draws the polish's canvas while the threads are chosen
-            helper = WovenHelper(lambda: _woven_canvas(target, w, space, model), space)
+            from .woven_helper import TwinDrawing
+
+            drawing = None if preview is None else TwinDrawing(preview, model)
+            helper = WovenHelper(lambda: _woven_canvas(target, w, space, model), space, drawing=drawing)
     try:
         t = time.perf_counter()
         seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines,
@@ -351,18 +365,19 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
                "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
         del canvas, pin_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
         if not polish:
-            return seq, out, None
+            return seq, out, None, None
         t = time.perf_counter()
         report("polishing")
         done = None if helper is None else helper.finish(seq, space, polish)
         out["polish_processes"] = 1 if done is None else 2
+        drawings = None if done is None else helper.drawing
         if done is None:
             woven = _woven_canvas(target, w, space, model)
             woven.build(list(zip(seq[:-1], seq[1:])))
             done = polish_plan(woven, seq, space, budget=polish)
         seq, ps, cover = done
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
-        return seq, out, cover
+        return seq, out, cover, drawings
     finally:
         if helper is not None:
             helper.close()

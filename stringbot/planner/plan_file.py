@@ -115,6 +115,10 @@ class Plan:
         The coverage of the sequence as woven, capped at 1, on the fine canvas of
         the polish (:mod:`stringbot.planner.woven`): the preview is drawn from it
         instead of drawing every thread again.  Not saved; None otherwise.
+    woven_drawings : callable or None
+        ``woven_drawings(size, board, thread)``: the drawing as woven
+        (:func:`~stringbot.planner.render.draw_woven`) made already by the
+        polish's helper process, or None.  Not saved.
     """
 
     pins: int
@@ -136,6 +140,8 @@ class Plan:
     background: str = MONO_BACKGROUND
     #: the plan's coverage as woven on a fine canvas, when the planner drew it (not saved)
     woven_cover: object = field(default=None, repr=False, compare=False)
+    #: the drawing as woven, when the polish's helper made it (not saved)
+    woven_drawings: object = field(default=None, repr=False, compare=False)
 
     def thread_model(self):
         """The plan's :class:`~stringbot.planner.thread.ThreadModel` (500 mm / 0.25 mm where not recorded)."""

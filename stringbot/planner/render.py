@@ -19,7 +19,7 @@ from .chords import line_pixels, pin_pixels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw", "draw_woven", "png_bytes", "MAX_FINE"]
+__all__ = ["draw", "draw_woven", "woven_drawing", "fine_side", "png_bytes", "MAX_FINE"]
 
 #: largest side of the canvas a drawing as woven is made on before it is averaged down
 MAX_FINE = 4096
@@ -64,7 +64,8 @@ def draw_woven(plan, *, size=1001, board=255, thread=0):
         threads are drawn where the thread is about one pixel wide (so that
         two threads on one spot are as dark as one, and two side by side twice
         as dark), then averaged down to ``size``; a plan just polished is
-        averaged down from the polish's own canvas (its ``woven_cover``).
+        averaged down from the polish's own canvas (its ``woven_cover``), or
+        was drawn so already by the polish's helper (its ``woven_drawings``).
     size : int
     board, thread : int
         Gray levels 0..255 of the board and the thread.
@@ -73,20 +74,38 @@ def draw_woven(plan, *, size=1001, board=255, thread=0):
     -------
     ndarray of uint8, shape (size, size)
     """
-    from .thread import composite, coverage
+    from .thread import coverage
 
+    made = getattr(plan, "woven_drawings", None)  # drawn already, by the polish's helper process
+    if made is not None:
+        img = made(size, board, thread)
+        if img is not None:
+            return img
     # threads overlap where they overlap at their own width: drawn on the canvas the polish uses (the
     # thread about one pixel wide; 2048 px for 0.25 mm on 500 mm), or finer for a large drawing, then
     # averaged down; a plan just polished brings that canvas with it (the same drawing)
-    from .woven import GRID, fine_factor
-
     model = plan.thread_model()
-    side = GRID * fine_factor(model.width_px(GRID), GRID)
-    if side < 2 * size:
-        side = size * max(1, min(int(math.ceil(1.0 / model.width_px(size) - 1e-9)), MAX_FINE // size))
+    side = fine_side(model, size)
     fine = getattr(plan, "woven_cover", None)
     if fine is None or fine.shape[0] != side:
         fine = coverage(plan.chord_list(), plan.pin_xy, size=side, width_px=model.width_px(side))
+    return woven_drawing(fine, size, board=board, thread=thread)
+
+
+def fine_side(model, size):
+    """Side of the canvas a drawing as woven of ``size`` px is made on (:func:`draw_woven`)."""
+    from .woven import GRID, fine_factor
+
+    side = GRID * fine_factor(model.width_px(GRID), GRID)
+    if side < 2 * size:
+        side = size * max(1, min(int(math.ceil(1.0 / model.width_px(size) - 1e-9)), MAX_FINE // size))
+    return side
+
+
+def woven_drawing(fine, size, *, board=255, thread=0):
+    """The drawing of a fine canvas's coverage (capped at 1), averaged down to ``size``: uint8 gray."""
+    from .thread import composite
+
     k = fine.shape[0] // size
     n = fine.shape[0] // k
     cov = fine[:n * k, :n * k].reshape(n, k, n, k).mean(axis=(1, 3)) if k > 1 else fine[:n, :n]

@@ -33,7 +33,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["WovenHelper", "Partner", "twin", "two_cores"]
+__all__ = ["WovenHelper", "TwinDrawing", "Partner", "twin", "two_cores"]
 
 #: chords the chooser sends at a time
 BATCH = 64
@@ -107,9 +107,9 @@ class Partner:
             self.pid = None
 
 
-def twin(canvas, seq, order, pin_lines):
+def twin(canvas, seq, order, pin_lines, *, after=None):
     """Fork a twin that polishes the other half of each round with :func:`~stringbot.planner.polish.polish_pins`
-    (and then ends); returns this side's :class:`Partner`."""
+    (then calls ``after(canvas)``, the drawing polished, and ends); returns this side's :class:`Partner`."""
     from multiprocessing.connection import Pipe
 
     from .polish import polish_pins
@@ -119,10 +119,84 @@ def twin(canvas, seq, order, pin_lines):
     def body():  # pragma: no cover - runs in the child
         here.close()
         polish_pins(canvas, seq, order, pin_lines, partner=Partner(there, 1))
+        there.close()
+        if after is not None:
+            after(canvas)
 
     pid = _fork(body)
     there.close()
     return Partner(here, 0, pid)
+
+
+class TwinDrawing:
+    """The preview of a polished plan, drawn by the twin while the helper sends the plan back.
+
+    Made in the planner's process before the helper is forked (a shared
+    buffer and a pipe the twin says "done" on); called as a plan's
+    ``woven_drawings(size, board, thread)``: the drawing (uint8, ``size`` px,
+    black thread on white) once the twin has made it, or None (another size,
+    or the twin failed: the caller draws it).
+
+    Parameters
+    ----------
+    size : int
+        The preview's side.
+    model : ThreadModel
+    """
+
+    def __init__(self, size, model):
+        import mmap
+        from multiprocessing.connection import Pipe
+
+        self.size, self.model = int(size), model
+        self._buf = mmap.mmap(-1, self.size * self.size)
+        self._done, self._say = Pipe(duplex=False)
+        self._img = None
+        self._pid = None
+
+    def make(self, canvas):  # pragma: no cover - runs in the twin
+        """Draw the canvas's coverage (the twin's, the same as the helper's) and say so."""
+        from .render import fine_side, woven_drawing
+
+        if fine_side(self.model, self.size) == canvas.F:
+            img = woven_drawing(np.minimum(canvas.Sf, 1.0).reshape(canvas.F, canvas.F), self.size)
+            self._buf[:] = img.tobytes()
+            self._say.send_bytes(b"1")
+        self._say.close()
+
+    def sent(self):
+        """This process is done with the writing end (it is forked already)."""
+        self._say.close()
+
+    def adopt(self, pid):
+        """Wait for process ``pid`` (the helper, which waits for the twin) once the drawing is in."""
+        self._pid = pid
+
+    def close(self):
+        """Take the drawing in (if it comes) and wait for the helper; idempotent."""
+        if self._done is not None:
+            try:
+                self._done.recv_bytes()
+                self._img = np.frombuffer(self._buf, dtype=np.uint8).reshape(self.size, self.size).copy()
+            except (EOFError, OSError):
+                log.warning("polish: the twin did not draw the preview; drawing it here")
+            self._done.close()
+            self._done = None
+        if self._pid is not None:
+            os.waitpid(self._pid, 0)
+            self._pid = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - at exit nothing is left to tell
+            pass
+
+    def __call__(self, size, board, thread):
+        if (int(size), board, thread) != (self.size, 255, 0):
+            return None
+        self.close()
+        return self._img
 
 
 class WovenHelper:
@@ -134,21 +208,26 @@ class WovenHelper:
         ``make_canvas() -> WovenCanvas``, called in the helper.
     space : ChordSpace
         The pins (the helper lays out the polish's chord points while it waits for chords).
+    drawing : TwinDrawing, optional
+        The preview the twin draws (then the polish's canvas is not sent back).
     """
 
-    def __init__(self, make_canvas, space):
+    def __init__(self, make_canvas, space, *, drawing=None):
         from multiprocessing.connection import Pipe
 
         self._conn, child = Pipe()
         self._pending = []
         self.failed = False
+        self.drawing = drawing
 
         def serve():  # pragma: no cover - runs in the child
             self._conn.close()
-            _serve(child, make_canvas, space)
+            _serve(child, make_canvas, space, drawing)
 
         self.pid = _fork(serve)
         child.close()
+        if drawing is not None:
+            drawing.sent()
 
     def _send(self, msg):
         if not self.failed:
@@ -174,7 +253,7 @@ class WovenHelper:
         if self._pending:
             self._send(("chords", np.asarray(self._pending, dtype=np.int32).reshape(-1, 2)))
             self._pending = []
-        self._send(("polish", [int(p) for p in seq], space, int(budget)))
+        self._send(("polish", [int(p) for p in seq], space, int(budget), time.perf_counter()))
         out = None
         try:
             if not self.failed:
@@ -188,6 +267,11 @@ class WovenHelper:
         except (EOFError, OSError):
             pass
         finally:
+            if out is not None and self.drawing is not None:
+                # the helper waits for the twin to draw the preview: it is waited for with the drawing
+                self._conn.close()
+                self.drawing.adopt(self.pid)
+                self.pid = None
             self.close()
         if out is None:
             log.warning("polish: the helper process failed; polishing here")
@@ -201,7 +285,7 @@ class WovenHelper:
             self.pid = None
 
 
-def _serve(conn, make_canvas, space):  # pragma: no cover - runs in the child
+def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs in the child
     """The helper: stamp chords as they come, and in between lay out the polish's chord points;
     polish on ``("polish", seq, space, budget)``."""
     from .polish import polish_lines, polish_plan
@@ -231,7 +315,7 @@ def _serve(conn, make_canvas, space):  # pragma: no cover - runs in the child
             canvas.draw(chosen[drawn:upto])
             drawn = upto
         elif msg[0] == "polish":
-            _, seq, space, budget = msg
+            _, seq, space, budget, sent = msg
             t = time.perf_counter()
             final = list(zip(seq[:-1], seq[1:]))
             if final[:drawn] == chosen[:drawn]:
@@ -240,10 +324,24 @@ def _serve(conn, make_canvas, space):  # pragma: no cover - runs in the child
             else:  # the sequence changed after it was chosen (refined): drawn afresh
                 canvas.build(final)
             t1 = time.perf_counter()
-            seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=twin)
-            stats = dict(stats, canvas_seconds=round(t1 - t, 3), pins_seconds=round(time.perf_counter() - t1, 3),
-                         drawn_early=drawn)
+            twins = []
+
+            def partner(*args):
+                mate = twin(*args, after=None if drawing is None else drawing.make)
+                if drawing is not None:
+                    drawing.sent()
+                twins.append(mate.pid)
+                mate.pid = None  # the twin may go on drawing the preview: waited for at the end
+                return mate
+
+            seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=partner)
+            if drawing is not None:
+                cover = None  # the twin draws the preview: the canvas need not go back
+            stats = dict(stats, behind_seconds=round(t - sent, 3), canvas_seconds=round(t1 - t, 3),
+                         pins_seconds=round(time.perf_counter() - t1, 3), drawn_early=drawn)
             conn.send(("done", seq, stats, None if cover is None else cover.shape))
             if cover is not None:
                 conn.send_bytes(np.ascontiguousarray(cover, dtype=np.float32).data)
+            for pid in twins:
+                os.waitpid(pid, 0)
             return
