@@ -41,3 +41,10 @@ def test_plan_path_does_not_import_scipy_ndimage_or_skimage_transform(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_float32_stays_float32_and_close():
+    a = np.random.default_rng(7).random((1024, 1024)).astype(np.float32)
+    ours = resize_square(a, 1001, anti_aliasing=False)
+    assert ours.dtype == np.float32
+    np.testing.assert_allclose(ours, resize(a.astype(float), (1001, 1001), order=1, anti_aliasing=False), atol=1e-5)

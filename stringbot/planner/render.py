@@ -108,7 +108,14 @@ def woven_drawing(fine, size, *, board=255, thread=0):
 
     k = fine.shape[0] // size
     n = fine.shape[0] // k
-    cov = fine[:n * k, :n * k].reshape(n, k, n, k).mean(axis=(1, 3)) if k > 1 else fine[:n, :n]
+    if k > 1:  # the mean of each k x k block, as a sum of k * k strided views (a reduction over two axes is slow)
+        cov = np.zeros((n, n), dtype=np.float32)
+        for i in range(k):
+            for j in range(k):
+                cov += fine[i:n * k:k, j:n * k:k]
+        cov *= np.float32(1.0 / (k * k))
+    else:
+        cov = fine[:n, :n]
     if n != size:
         from .resample import resize_square
 

@@ -63,7 +63,8 @@ def resize_taps(n_in, n_out, *, anti_aliasing):
 
 
 def _along_rows(a, idx, w):
-    out = np.zeros((idx.shape[0],) + a.shape[1:])
+    out = np.zeros((idx.shape[0],) + a.shape[1:], dtype=a.dtype)
+    w = w.astype(a.dtype)
     for k in range(idx.shape[1]):
         out += w[:, k, None] * a[idx[:, k]]
     return out
@@ -75,14 +76,16 @@ def resize_square(image, size, *, anti_aliasing=True):
     Parameters
     ----------
     image : ndarray of float, shape (n, n)
+        float32 is resized in float32 (faster; skimage's to about 1e-6).
     size : int
     anti_aliasing : bool
 
     Returns
     -------
-    ndarray of float64, shape (size, size)
+    ndarray of float64 (float32 for a float32 image), shape (size, size)
     """
-    a = np.asarray(image, dtype=np.float64)
+    a = np.asarray(image)
+    a = a.astype(np.float32 if a.dtype == np.float32 else np.float64, copy=False)
     if a.ndim != 2 or a.shape[0] != a.shape[1]:
         raise ValueError(f"image of shape {a.shape}; expected a square")
     idx, w = resize_taps(a.shape[0], size, anti_aliasing=anti_aliasing)
