@@ -172,14 +172,15 @@ class TwinDrawing:
         """Wait for process ``pid`` (the helper, which waits for the twin) once the drawing is in."""
         self._pid = pid
 
-    def close(self):
+    def close(self, *, warn=True):
         """Take the drawing in (if it comes) and wait for the helper; idempotent."""
         if self._done is not None:
             try:
                 self._done.recv_bytes()
                 self._img = np.frombuffer(self._buf, dtype=np.uint8).reshape(self.size, self.size).copy()
             except (EOFError, OSError):
-                log.warning("polish: the twin did not draw the preview; drawing it here")
+                if warn:
+                    log.warning("polish: the twin did not draw the preview; drawing it here")
             self._done.close()
             self._done = None
         if self._pid is not None:
@@ -188,7 +189,7 @@ class TwinDrawing:
 
     def __del__(self):
         try:
-            self.close()
+            self.close(warn=False)
         except Exception:  # noqa: BLE001 - at exit nothing is left to tell
             pass
 
@@ -334,7 +335,12 @@ def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs i
                 mate.pid = None  # the twin may go on drawing the preview: waited for at the end
                 return mate
 
-            seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=partner)
+            try:
+                seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=partner)
+            except BaseException:
+                for pid in twins:  # gone or going (an interrupt reaches the twin too)
+                    os.waitpid(pid, 0)
+                raise
             if drawing is not None:
                 cover = None  # the twin draws the preview: the canvas need not go back
             stats = dict(stats, behind_seconds=round(t - sent, 3), canvas_seconds=round(t1 - t, 3),
