@@ -4,13 +4,22 @@ Prints wall time, CPU time (user + system of the child: on a shared machine
 the wall time also counts the time other jobs had the cores), peak memory (max
 RSS of the child) and the load average for
 
-* the default method (residual, polish included), the same with
+* the default method (residual, polish included, on two cores where there
+  are two), the same in one process (``STRINGBOT_PROCESSES=1``) and with
   ``--polish 0`` (what the polish costs), fitness and greedy (ThreadTone's
   1001 px), 300 pins, 401 px, auto lines, camera.png, with a cold chord cache
   (an empty cache folder) and a warm one;
-* the default method and fitness at 600 pins, 801 px (cold and warm).
+* the default method and fitness at 600 pins, 801 px (cold and warm);
+* with ``--pictures DIR``: the default plan of every picture in DIR
+  (``stringbot plan IMG --machine grbl-ring``), median of ``--repeat`` runs.
+
+This machine's speed drifts (a virtual machine sharing its host): the same
+command can take 20 % more or less from one hour to the next.  The first and
+last lines time a fixed numpy workload (the chooser's inner step, 2000 times)
+so that runs made at different times can be compared.
 
 Usage: python benchmarks/bench_planner.py [IMAGE] [--repeat N] [--skip-600] [--methods residual,fitness,greedy]
+           [--pictures DIR]
 """
 
 import argparse
@@ -32,11 +41,25 @@ def _command():
     return [exe] if exe else [sys.executable, "-c", "from stringbot.cli import main; main()"]
 
 
-def run_once(args, cache):
+def reference_seconds():
+    """A fixed workload: 2000 gathers of 75 000 points and their sums per chord (the chooser's step)."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    g = rng.random(401 * 401).astype(np.float32)
+    pix = np.sort(rng.integers(0, g.size, 75_000)).astype(np.int32)
+    starts = np.linspace(0, len(pix) - 1, 300).astype(np.int64)
+    t = time.perf_counter()
+    for _ in range(2000):
+        np.add.reduceat(g.take(pix), starts)
+    return time.perf_counter() - t
+
+
+def run_once(args, cache, env_extra=None):
     """Run `stringbot plan ...` in a fresh process; return (wall seconds, cpu seconds, stdout)."""
     import resource
 
-    env = dict(os.environ, STRINGBOT_CACHE=str(cache))
+    env = dict(os.environ, STRINGBOT_CACHE=str(cache), **(env_extra or {}))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     p = subprocess.run(_command() + ["plan", *args], capture_output=True, text=True, env=env)
@@ -48,12 +71,13 @@ def run_once(args, cache):
     return wall, cpu, p.stdout.strip()
 
 
-def peak_of(args, cache):
-    """Peak RSS of one run, measured alone in a helper process (children's maxrss is cumulative)."""
+def peak_of(args, cache, env_extra=None):
+    """Peak RSS of one run (its largest process), measured alone in a helper process (children's maxrss
+    is cumulative)."""
     code = ("import resource, subprocess, sys, os;"
             "p = subprocess.run(sys.argv[1:], capture_output=True);"
             "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0)")
-    env = dict(os.environ, STRINGBOT_CACHE=str(cache))
+    env = dict(os.environ, STRINGBOT_CACHE=str(cache), **(env_extra or {}))
     p = subprocess.run([sys.executable, "-c", code, *_command(), "plan", *args], capture_output=True, text=True, env=env)
     return float(p.stdout.strip())
 
@@ -64,41 +88,57 @@ def main():
     ap.add_argument("--repeat", type=int, default=3, help="warm runs per case (best and median printed)")
     ap.add_argument("--skip-600", action="store_true", help="skip the 600-pin, 801-px case")
     ap.add_argument("--methods", default="residual,fitness,greedy", help="methods to run (comma-separated)")
+    ap.add_argument("--pictures", default=None, help="also time the default plan of every picture in this folder")
     opts = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="stringbot-bench-"))
-    cases = [("residual", ["--pins", "300", "--size", "401"]), ("residual", ["--pins", "300", "--size", "401",
-                                                                             "--polish", "0"]),
-             ("fitness", ["--pins", "300", "--size", "401"]), ("greedy", ["--pins", "300", "--size", "1001"])]
+    one = {"STRINGBOT_PROCESSES": "1"}
+    cases = [("residual", ["--pins", "300", "--size", "401"], None),
+             ("residual", ["--pins", "300", "--size", "401"], one),
+             ("residual", ["--pins", "300", "--size", "401", "--polish", "0"], None),
+             ("fitness", ["--pins", "300", "--size", "401"], None), ("greedy", ["--pins", "300", "--size", "1001"], None)]
     if not opts.skip_600:
-        cases += [("residual", ["--pins", "600", "--size", "801"]), ("fitness", ["--pins", "600", "--size", "801"])]
+        cases += [("residual", ["--pins", "600", "--size", "801"], None),
+                  ("fitness", ["--pins", "600", "--size", "801"], None)]
     unknown = set(opts.methods.split(",")) - {"residual", "fitness", "greedy"}
     if unknown:
         raise SystemExit(f"--methods {opts.methods}: unknown {', '.join(sorted(unknown))}; expected residual, fitness, greedy")
     cases = [c for c in cases if c[0] in opts.methods.split(",")]
     print(f"image {opts.image}; {os.cpu_count()} cores; python {sys.version.split()[0]}")
+    print(f"machine speed: reference workload {reference_seconds():.2f} s")
     print(f"{'case':<36} {'cache':<6} {'wall s':>7} {'cpu s':>6} {'peak MB':>8} {'load':>5}  summary")
     try:
-        for method, extra in cases:
-            name = f"{method} {extra[1]} pins {extra[3]} px" + (" nopolish" if "--polish" in extra else "")
+        for method, extra, env in cases:
+            name = (f"{method} {extra[1]} pins {extra[3]} px" + (" nopolish" if "--polish" in extra else "")
+                    + (" 1 process" if env else ""))
             args = [opts.image, "-o", str(work / "p.json"), "--method", method, *extra]
             cache = work / f"cache-{method}-{'-'.join(extra[1::2])}"
             shutil.rmtree(cache, ignore_errors=True)
             cache.mkdir()
-            wall, cpu, out = run_once(args, cache)          # cold: empty cache folder
+            wall, cpu, out = run_once(args, cache, env)          # cold: empty cache folder
             load = os.getloadavg()[0]
             shutil.rmtree(cache)
             cache.mkdir()
-            peak = peak_of(args, cache)
+            peak = peak_of(args, cache, env)
             print(f"{name:<36} {'cold':<6} {wall:7.2f} {cpu:6.2f} {peak:8.0f} {load:5.1f}  {out.split(' -> ')[0]}")
             runs = []
             for _ in range(max(1, opts.repeat)):
-                runs.append(run_once(args, cache)[:2])
-            peak = peak_of(args, cache)
+                runs.append(run_once(args, cache, env)[:2])
+            peak = peak_of(args, cache, env)
             runs.sort()
             wall, cpu = runs[len(runs) // 2]
             print(f"{name:<36} {'warm':<6} {wall:7.2f} {cpu:6.2f} {peak:8.0f} {os.getloadavg()[0]:5.1f}  "
                   f"(best {runs[0][0]:.2f} s of {len(runs)})")
             sys.stdout.flush()
+        if opts.pictures:
+            print(f"{'default plan, --machine grbl-ring':<36} {'median':>6} {'min':>6} {'max':>6} {'cpu s':>6}")
+            for img in sorted(Path(opts.pictures).glob("*.png")):
+                runs = sorted(run_once([str(img), "-o", str(work / "p.json"), "--machine", "grbl-ring"],
+                                       work)[:2] for _ in range(max(1, opts.repeat)))
+                walls = sorted(r[0] for r in runs)
+                print(f"{img.stem:<36} {walls[len(walls) // 2]:6.2f} {walls[0]:6.2f} {walls[-1]:6.2f} "
+                      f"{runs[len(runs) // 2][1]:6.2f}")
+                sys.stdout.flush()
+        print(f"machine speed: reference workload {reference_seconds():.2f} s")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
