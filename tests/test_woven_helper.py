@@ -96,6 +96,7 @@ def test_the_twin_draws_the_preview_one_process_would(monkeypatch):
     assert two.woven_cover is None  # the canvas did not come back: the twin drew the preview
     np.testing.assert_array_equal(draw_woven(two, size=1001), draw_woven(one, size=1001))
     assert two.woven_drawings(501, 255, 0) is None  # another size: drawn by the caller
+    two.woven_drawings.close()
     assert _no_children_left()
 
 
@@ -116,6 +117,7 @@ def test_a_twin_that_does_not_draw_leaves_the_preview_here(monkeypatch, caplog):
     # changed chord by chord
     assert np.abs(img.astype(float) - draw_woven(one, size=1001)).mean() < 0.1
     assert two.sequence == one.sequence
+    two.woven_drawings.close()
     assert _no_children_left()
 
 

@@ -172,8 +172,8 @@ class TwinDrawing:
         """Wait for process ``pid`` (the helper, which waits for the twin) once the drawing is in."""
         self._pid = pid
 
-    def close(self, *, warn=True):
-        """Take the drawing in (if it comes) and wait for the helper; idempotent."""
+    def _take(self, warn=True):
+        """Take the drawing in, once: wait for the twin's word (or its end)."""
         if self._done is not None:
             try:
                 self._done.recv_bytes()
@@ -183,20 +183,25 @@ class TwinDrawing:
                     log.warning("polish: the twin did not draw the preview; drawing it here")
             self._done.close()
             self._done = None
+
+    def close(self, *, wait=True, warn=True):
+        """Take the drawing in (if it comes) and reap the helper (``wait``: until it has ended)."""
+        self._take(warn)
         if self._pid is not None:
-            os.waitpid(self._pid, 0)
-            self._pid = None
+            pid, _ = os.waitpid(self._pid, 0 if wait else os.WNOHANG)
+            if pid:
+                self._pid = None
 
     def __del__(self):
         try:
-            self.close(warn=False)
+            self.close(wait=False, warn=False)  # a helper still ending is left to end on its own
         except Exception:  # noqa: BLE001 - at exit nothing is left to tell
             pass
 
     def __call__(self, size, board, thread):
         if (int(size), board, thread) != (self.size, 255, 0):
             return None
-        self.close()
+        self._take()  # the helper is reaped later: its process takes a moment to end
         return self._img
 
 
