@@ -1,8 +1,9 @@
 """Speed and memory of `stringbot plan`: whole commands in fresh processes.
 
-Prints wall time, CPU time (user + system of the child: on a shared machine
-the wall time also counts the time other jobs had the cores), peak memory (max
-RSS of the child) and the load average for
+Prints wall time (until the command ends), CPU time (user + system of the
+command and of its helper processes: on a shared machine the wall time also
+counts the time other jobs had the cores), peak memory (max RSS of its largest
+process) and the load average for
 
 * the default method (residual, polish included, on two cores where there
   are two), the same in one process (``STRINGBOT_PROCESSES=1``) and with
@@ -55,8 +56,29 @@ def reference_seconds():
     return time.perf_counter() - t
 
 
+def _adopt_orphans():
+    """Make this process the reaper of its descendants' orphans (Linux), so that the CPU time and peak
+    memory of the plan's helper processes, which may end just after the command, are counted."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(36, 1, 0, 0, 0)  # PR_SET_CHILD_SUBREAPER
+    except (OSError, AttributeError):
+        pass
+
+
+def _reap_all():
+    """Wait for every process left to this one (the helpers ending after the command)."""
+    while True:
+        try:
+            os.wait()
+        except ChildProcessError:
+            return
+
+
 def run_once(args, cache, env_extra=None):
-    """Run `stringbot plan ...` in a fresh process; return (wall seconds, cpu seconds, stdout)."""
+    """Run `stringbot plan ...` in a fresh process; return (wall seconds until the command ends, cpu
+    seconds of it and its helper processes, stdout)."""
     import resource
 
     env = dict(os.environ, STRINGBOT_CACHE=str(cache), **(env_extra or {}))
@@ -64,6 +86,7 @@ def run_once(args, cache, env_extra=None):
     t = time.perf_counter()
     p = subprocess.run(_command() + ["plan", *args], capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t
+    _reap_all()
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if p.returncode != 0:
@@ -74,8 +97,10 @@ def run_once(args, cache, env_extra=None):
 def peak_of(args, cache, env_extra=None):
     """Peak RSS of one run (its largest process), measured alone in a helper process (children's maxrss
     is cumulative)."""
-    code = ("import resource, subprocess, sys, os;"
-            "p = subprocess.run(sys.argv[1:], capture_output=True);"
+    code = ("import resource, subprocess, sys, os, ctypes\n"
+            "try:\n    ctypes.CDLL(None).prctl(36, 1, 0, 0, 0)\nexcept (OSError, AttributeError):\n    pass\n"
+            "p = subprocess.run(sys.argv[1:], capture_output=True)\n"
+            "while True:\n    try:\n        os.wait()\n    except ChildProcessError:\n        break\n"
             "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0)")
     env = dict(os.environ, STRINGBOT_CACHE=str(cache), **(env_extra or {}))
     p = subprocess.run([sys.executable, "-c", code, *_command(), "plan", *args], capture_output=True, text=True, env=env)
@@ -103,6 +128,7 @@ def main():
     if unknown:
         raise SystemExit(f"--methods {opts.methods}: unknown {', '.join(sorted(unknown))}; expected residual, fitness, greedy")
     cases = [c for c in cases if c[0] in opts.methods.split(",")]
+    _adopt_orphans()
     print(f"image {opts.image}; {os.cpu_count()} cores; python {sys.version.split()[0]}")
     print(f"machine speed: reference workload {reference_seconds():.2f} s")
     print(f"{'case':<36} {'cache':<6} {'wall s':>7} {'cpu s':>6} {'peak MB':>8} {'load':>5}  summary")
