@@ -40,13 +40,18 @@ BATCH = 64
 
 
 def two_cores():
-    """True where the polish uses helper processes: ``os.fork`` exists and two cores are ours;
-    ``$STRINGBOT_PROCESSES`` ``1`` never, ``2`` always (where ``os.fork`` exists)."""
+    """True where the polish uses helper processes: on Linux (where forking a process that has used
+    numpy is safe) with two cores of ours; ``$STRINGBOT_PROCESSES`` ``1`` never, ``2`` always (where
+    ``os.fork`` exists)."""
+    import sys
+
     want = os.environ.get("STRINGBOT_PROCESSES", "").strip()
     if not hasattr(os, "fork") or want == "1":
         return False
     if want == "2":
         return True
+    if not sys.platform.startswith("linux"):
+        return False
     try:
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
