@@ -368,7 +368,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
             return seq, out, None, None
         t = time.perf_counter()
         report("polishing")
-        done = None if helper is None else helper.finish(seq, space, polish)
+        done = None if helper is None else helper.finish(seq, polish)
         out["polish_processes"] = 1 if done is None else 2
         drawings = None if done is None else helper.drawing
         if done is None:

@@ -28,7 +28,7 @@ from .greedy import _PinLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["polish_plan", "polish_pins", "polish_lines", "candidate", "propose", "settle", "badness_order", "POLISH_SPACING"]
+__all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "POLISH_SPACING"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
 POLISH_SPACING = 2.0
@@ -54,9 +54,10 @@ def badness_order(canvas, seq, pin_lines):
     return [int(k) for k in np.argsort(means[:-1] + means[1:], kind="stable") + 1]
 
 
-def candidate(canvas, seq, k, pin_lines, scratch):
-    """The pin to reroute pin ``k`` through: the one whose two chords (from ``seq[k - 1]`` and to
-    ``seq[k + 1]``) have the highest error slope; None when there is none."""
+def propose(canvas, seq, k, pin_lines, scratch):
+    """The reroute of pin ``k`` worth trying: ``(k, a, p, c, q)`` when going through ``q`` instead of
+    ``p = seq[k]`` (between ``a`` and ``c``) lowers the error by the estimate (which writes
+    nothing), else None.  ``q`` is the pin whose two chords have the highest error slope."""
     from_a, from_c = scratch
     a, p, c = seq[k - 1], seq[k], seq[k + 1]
     oa, sa = canvas.scores(pin_lines, a)
@@ -68,19 +69,9 @@ def candidate(canvas, seq, k, pin_lines, scratch):
     total = from_a + from_c
     total[[a, c, p]] = -np.inf
     q = int(np.argmax(total))
-    return q if np.isfinite(total[q]) else None
-
-
-def propose(canvas, seq, k, pin_lines, scratch):
-    """The reroute of pin ``k`` worth trying: ``(k, a, p, c, q)`` when going through
-    :func:`candidate` ``q`` instead of ``p = seq[k]`` (between ``a`` and ``c``) lowers the error by
-    the estimate (which writes nothing), else None."""
-    q = candidate(canvas, seq, k, pin_lines, scratch)
-    if q is None:
+    if not np.isfinite(total[q]):
         return None
-    a, p, c = seq[k - 1], seq[k], seq[k + 1]
-    new = [(a, q), (q, c)]
-    if canvas.estimate(chords_out=[(a, p), (p, c)], chords_in=new) < 0.0:
+    if canvas.estimate(chords_out=[(a, p), (p, c)], chords_in=[(a, q), (q, c)]) < 0.0:
         return (int(k), int(a), int(p), int(c), q)
     return None
 

@@ -251,20 +251,22 @@ class WovenHelper:
         """A chord chosen (a pair of pins); sent on in batches of :data:`BATCH`."""
         self._pending.append(chord)
         if len(self._pending) >= BATCH:
+            self._flush()
+
+    def _flush(self):
+        if self._pending:
             self._send(("chords", np.asarray(self._pending, dtype=np.int32).reshape(-1, 2)))
             self._pending = []
 
-    def finish(self, seq, space, budget):
+    def finish(self, seq, budget):
         """Polish ``seq`` in the helper.
 
         Returns
         -------
         (seq, stats, cover) as :func:`~stringbot.planner.polish.polish_plan`, or None when the helper failed.
         """
-        if self._pending:
-            self._send(("chords", np.asarray(self._pending, dtype=np.int32).reshape(-1, 2)))
-            self._pending = []
-        self._send(("polish", [int(p) for p in seq], space, int(budget), time.perf_counter()))
+        self._flush()
+        self._send(("polish", [int(p) for p in seq], int(budget), time.perf_counter()))
         out = None
         try:
             if not self.failed:
@@ -298,7 +300,7 @@ class WovenHelper:
 
 def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs in the child
     """The helper: stamp chords as they come, and in between lay out the polish's chord points;
-    polish on ``("polish", seq, space, budget)``."""
+    polish on ``("polish", seq, budget, sent)``."""
     from .polish import polish_lines, polish_plan
     from .residual import PATIENCE
 
@@ -326,7 +328,7 @@ def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs i
             canvas.draw(chosen[drawn:upto])
             drawn = upto
         elif msg[0] == "polish":
-            _, seq, space, budget, sent = msg
+            _, seq, budget, sent = msg
             t = time.perf_counter()
             final = list(zip(seq[:-1], seq[1:]))
             if final[:drawn] == chosen[:drawn]:
