@@ -143,3 +143,20 @@ def test_plan_on_the_command_line_is_the_same_on_one_core_and_two(tmp_path, monk
     p1, p2 = (json.loads(outs[n][0]) for n in (1, 2))
     assert p1["sequence"] == p2["sequence"] and p2["stats"]["polish_processes"] == 2
     np.testing.assert_array_equal(outs[1][1], outs[2][1])
+
+
+def test_a_wrong_setting_is_one_line_and_exit_2(tmp_path):
+    import subprocess
+
+    from PIL import Image
+
+    img = tmp_path / "horse.png"
+    Image.fromarray(horse_like(64).astype(np.uint8)).save(img)
+    out = tmp_path / "p.json"
+    r = subprocess.run([sys.executable, "-m", "stringbot.cli", "plan", str(img), "-o", str(out), "--pins", "40"],
+                       capture_output=True, text=True, env=dict(os.environ, STRINGBOT_PROCESSES="two"), timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [
+        "stringbot: error: STRINGBOT_PROCESSES='two'; expected 1 (one process) or 2 (a helper and its twin), "
+        "or unset (two on Linux with two cores)"]
+    assert not out.exists()

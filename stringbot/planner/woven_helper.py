@@ -46,6 +46,11 @@ def two_cores():
     import sys
 
     want = os.environ.get("STRINGBOT_PROCESSES", "").strip()
+    if want not in ("", "1", "2"):
+        from ..errors import BadInput
+
+        raise BadInput(f"STRINGBOT_PROCESSES={want!r}; expected 1 (one process) or 2 (a helper and its twin), "
+                       "or unset (two on Linux with two cores)")
     if not hasattr(os, "fork") or want == "1":
         return False
     if want == "2":
