@@ -258,8 +258,7 @@ class WovenCanvas:
         self.G -= h
         self.D[cp] += dD
         self.u[self.pidx[cp]] = self.s[cp] * (1.0 - self.D[cp])
-        reg = np.flatnonzero(h)
-        self.g[reg] = self.u[reg] * self.G[reg]
+        np.multiply(self.u, self.G, out=self.g)  # the same as where h is not 0, and cheaper than finding it
         self.E += dE
         return dE
 
