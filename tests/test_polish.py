@@ -96,6 +96,36 @@ def test_the_estimate_is_the_exact_change_where_the_chords_do_not_overlap():
     assert canvas.estimate(**near) != pytest.approx(canvas.delta(**near), rel=1e-9)
 
 
+def _state(canvas):
+    return [canvas.Sf, canvas.D, canvas.G, canvas.u, canvas.g, canvas.uses, np.array(canvas.E)]
+
+
+@pytest.mark.parametrize("undone", [False, True])
+def test_a_change_replayed_in_a_copy_leaves_it_the_same_to_the_bit(undone):
+    """What a second process takes in (the values, not computed again) is what the first holds."""
+    space = chord_space(60)
+    chords = [(0, 30), (5, 40), (12, 47), (20, 51), (30, 12)]
+    first, t, mask = canvas_for(horse_like(), space)
+    second, _, _ = canvas_for(horse_like(), space)
+    first.build(chords)
+    second.build(chords)
+    old, new = [(5, 40), (12, 47)], [(5, 33), (33, 47)]
+    first.apply(chords_out=old, chords_in=new)
+    if undone:
+        first.apply(chords_out=new, chords_in=old)  # as settle undoes a change that did not help
+    if not undone:  # the change did change every part of the state
+        assert not any(np.array_equal(a, b) for a, b in zip(_state(first), _state(second)))
+    second.replay(first.change_record(old + new), first.G, first.E,
+                  chords_out=() if undone else old, chords_in=() if undone else new)
+    for a, b in zip(_state(first), _state(second)):
+        np.testing.assert_array_equal(a, b)
+    # the copy goes on as the first does
+    more = dict(chords_out=[(20, 51)], chords_in=[(21, 50)])
+    assert first.apply(**more) == second.apply(**more)
+    for a, b in zip(_state(first), _state(second)):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_polish_never_makes_the_woven_picture_worse_and_keeps_one_thread():
     space = chord_space(60)
     g = horse_like()

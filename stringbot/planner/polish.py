@@ -14,9 +14,8 @@ on the horse and the camera, at a sixth more time.)
 
 The pins revisited are the ``budget`` whose chords draw most where the picture
 is already darker than wanted (a fixed number, so that the same picture
-always gives the same plan).  They are revisited two at a time: the two
-proposals of a round are made against the drawing before the round ahead of
-it is settled, so that on two cores two processes make them at once
+always gives the same plan).  Each pin's proposal is made before the one
+ahead of it is settled, so that on two cores two processes take turns
 (:mod:`stringbot.planner.woven_helper`) and reach the same plan.
 """
 
@@ -91,23 +90,33 @@ def settle(canvas, seq, proposal):
     return 0
 
 
-def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
-    """Revisit pins ``order`` (indices into ``seq``, inner ones) two at a time; ``seq`` is changed in place.
+def _touches(seq, proposal):
+    """Whether settling ``proposal`` changes the drawing (made, or made and undone)."""
+    if proposal is None:
+        return False
+    k, a, p, c, _ = proposal
+    return (seq[k - 1], seq[k], seq[k + 1]) == (a, p, c)
 
-    Round ``r`` proposes a reroute for pins ``order[2r]`` and ``order[2r + 1]``
-    (:func:`propose`) against the drawing as it is, then settles round
-    ``r - 1``'s two proposals in turn (:func:`settle`: each kept only if the
-    exact error drops).  So the two proposals of a round can be made in two
-    processes at once, each settling both (``partner``), and the plan is the
-    same pin for pin.
+
+def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
+    """Revisit pins ``order`` (indices into ``seq``, inner ones) in turn; ``seq`` is changed in place.
+
+    The proposal for pin ``order[i]`` (:func:`propose`) is made against the
+    drawing as it is before proposal ``i - 1`` is settled; then proposal
+    ``i - 1`` is settled (:func:`settle`: kept only if the exact error
+    drops).  So two processes can take turns (``partner``): each makes the
+    proposal of every other pin while the other settles the one before, and
+    sends what its own settling did to the drawing, so that both hold the
+    same drawing and the plan is the same pin for pin.
 
     Parameters
     ----------
     partner : optional
         The other process (:class:`~stringbot.planner.woven_helper.Partner`):
-        ``partner.swap(pair, make)`` makes this process's proposal of the round
-        (``make(k)``), sends it and returns the previous round's two;
-        ``partner.last()`` the last round's.  None: both are made here.
+        ``partner.run(order, make, settle, replay)`` makes and settles this
+        process's proposals (``make(k)``, ``settle(proposal) -> (made, change)``)
+        and replays the other's (``replay(proposal, made, change)``) in order.
+        None: all of them here.
 
     Returns
     -------
@@ -120,17 +129,33 @@ def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
     def make(k):
         return propose(canvas, seq, k, pin_lines, scratch)
 
-    rerouted = 0
-    pending = []
-    for r in range(0, len(order), 2):
-        pair = order[r:r + 2]
-        if partner is None:
-            made, pending = pending, [make(k) for k in pair]
-        else:
-            made = partner.swap(pair, make)
-        rerouted += sum(settle(canvas, seq, prop) for prop in made)
-    rerouted += sum(settle(canvas, seq, prop) for prop in (pending if partner is None else partner.last()))
-    return rerouted
+    if partner is not None:
+        def settle_here(proposal):
+            touched = _touches(seq, proposal)
+            made = settle(canvas, seq, proposal)
+            return made, ((canvas.change_record(_chords(proposal)), canvas.G, canvas.E) if touched else None)
+
+        def replay(proposal, made, change):
+            if change is not None:
+                record, G, E = change
+                old, new = _chords(proposal)[:2], _chords(proposal)[2:]
+                canvas.replay(record, G, E, chords_out=old if made else (), chords_in=new if made else ())
+            if made:
+                seq[proposal[0]] = proposal[4]
+
+        return partner.run(order, make, settle_here, replay)
+    rerouted, pending = 0, None
+    for k in order:
+        proposal = make(k)
+        rerouted += settle(canvas, seq, pending)
+        pending = proposal
+    return rerouted + settle(canvas, seq, pending)
+
+
+def _chords(proposal):
+    """The chords a proposal takes out and puts in: ``[(a, p), (p, c), (a, q), (q, c)]``."""
+    _, a, p, c, q = proposal
+    return [(a, p), (p, c), (a, q), (q, c)]
 
 
 def polish_plan(canvas, seq, space, *, budget, partner=None):

@@ -262,6 +262,34 @@ class WovenCanvas:
         self.E += dE
         return dE
 
+    # -- the same change in another process ----------------------------------------------------------------
+
+    def change_record(self, chords):
+        """What the last changes of ``chords`` left on the drawing: ``(flat, sf, cu, d)``, the fine
+        canvas at their fine pixels and the grid at their grid pixels (with :attr:`G` and :attr:`E`,
+        all that :meth:`replay` needs to bring a copy of the drawing as it was before to the same state)."""
+        fps = [self.footprint(a, b) for a, b in chords]
+        flat = np.concatenate([fp[0] for fp in fps])
+        cu = np.concatenate([fp[3] for fp in fps])
+        return flat, self.Sf[flat], cu, self.D[cu]
+
+    def replay(self, record, G, E, chords_out=(), chords_in=()):
+        """Bring the drawing to the state another copy of it reached by :meth:`apply` (removing
+        ``chords_out``, adding ``chords_in``; both empty when it was undone) and described by
+        :meth:`change_record`, ``G`` and ``E``: the same values, not computed again."""
+        for chords, sign in ((chords_out, -1), (chords_in, 1)):
+            for a, b in chords:
+                self.uses[a, b] += sign
+                if a != b:
+                    self.uses[b, a] += sign
+        flat, sf, cu, d = record
+        self.Sf[flat] = sf
+        self.D[cu] = d
+        self.u[self.pidx[cu]] = self.s[cu] * (1.0 - self.D[cu])  # u = s (1 - D) everywhere, always
+        np.copyto(self.G, G)
+        np.multiply(self.u, self.G, out=self.g)
+        self.E = float(E)
+
     # -- scores ------------------------------------------------------------------------------------------
 
     def row(self, pin_lines, a):

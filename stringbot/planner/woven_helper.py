@@ -8,16 +8,18 @@ time.  On a machine with two cores (:func:`two_cores`):
   stamps the chord's footprint on the polish's fine canvas meanwhile; when
   the sequence is done it draws it from the footprints it already has and
   polishes it.
-* For the polish, the helper forks a twin (:func:`twin`).  The polish goes
-  in rounds of two pins (:func:`~stringbot.planner.polish.polish_pins`):
-  each process makes the proposal for one pin of the round, they swap
-  them, and both settle the same two proposals in the same order, so both
-  hold the same drawing after every round.  The proposals of a round are
-  made while the round before is settled, so neither waits for the other.
+* For the polish, the helper forks a twin (:func:`twin`).  The pins are
+  revisited in turn (:func:`~stringbot.planner.polish.polish_pins`), each
+  proposal made before the one ahead of it is settled: the two processes
+  take every other pin, each making its next proposal while the other
+  settles the one before, then taking in what that settling changed (the
+  values, through a shared buffer) and settling its own.  So both hold the
+  same drawing after every pin, and each settles only its own proposals.
 
-Every footprint is what stamping it anywhere else gives and every decision
-is made on the same drawing in both processes, so the plan is the one a
-single process makes, pin for pin (``tests/test_woven_helper.py``).
+Every footprint is what stamping it anywhere else gives, every change is
+taken in as the values the other process computed, and every decision is
+made on the same drawing in both processes, so the plan is the one a single
+process makes, pin for pin (``tests/test_woven_helper.py``).
 Anything that goes wrong in a helper costs only time: a twin that is gone
 makes the helper fail, and a helper that fails or dies leaves the polish to
 the planner's own process (:meth:`WovenHelper.finish` returns None).  The
@@ -85,30 +87,54 @@ def _fork(body):
 class Partner:
     """One side of a polish in two processes (:func:`~stringbot.planner.polish.polish_pins`).
 
-    Each round, this side makes the proposal for pin ``pair[side]``, sends it,
-    and gets the other side's proposal of the round before: both sides then
-    settle the same two proposals in the same order, so both hold the same
-    drawing.  The messages are a few numbers: a footprint the other side
-    proposed is stamped here again when it is settled.
+    The proposals alternate between the sides: side 0 makes and settles
+    proposals 0, 2, 4, ..., side 1 the others.  Each side makes its next
+    proposal while the other settles the one before it; then it takes in
+    what that settling did to the drawing (:meth:`WovenCanvas.replay
+    <stringbot.planner.woven.WovenCanvas.replay>`: the values themselves,
+    so both hold the same drawing), settles its own and hands that on.  The
+    pipe carries the proposals and a few numbers; the drawing's changes go
+    through ``buffers`` (:func:`buffers`, shared, one per side), each
+    written only once the other side has read the one before.
     """
 
-    def __init__(self, conn, side, pid=None):
+    def __init__(self, conn, side, buffers, pid=None):
         self.conn, self.side, self.pid = conn, side, pid
-        self._mine = None
-        self._first = True
+        self._out, self._in = buffers[side], buffers[1 - side]
 
-    def swap(self, pair, make):
-        mine = make(pair[self.side]) if self.side < len(pair) else None
-        self.conn.send(mine)
-        out = self.last()
-        self._mine, self._first = mine, False
-        return out
+    def run(self, order, make, settle, replay):
+        """Make and settle this side's proposals of ``order``, replay the other's; returns how many
+        were made (both sides')."""
+        n, rerouted = len(order), 0
+        mine = range(self.side, n, 2)
+        for i in mine:
+            proposal = make(order[i])  # against the drawing before proposal i - 1 is settled
+            if i >= 1:
+                rerouted += self._take(replay)
+            made, change = settle(proposal)
+            rerouted += made
+            self._give(proposal, made, change)
+        if (mine[-1] + 1 if len(mine) else 0) < n:
+            rerouted += self._take(replay)
+        return rerouted
 
-    def last(self):
-        if self._first:
-            return []
-        theirs = self.conn.recv()  # EOFError if the other side is gone: the polish fails here
-        return [self._mine, theirs] if self.side == 0 else [theirs, self._mine]
+    def _give(self, proposal, made, change):
+        sizes = None
+        if change is not None:
+            (flat, sf, cu, d), G, E = change
+            sizes = _pack(self._out, G, d, flat, sf, cu)
+            sizes = (sizes, float(E))
+        self.conn.send((proposal, made, sizes))
+
+    def _take(self, replay):
+        proposal, made, sizes = self.conn.recv()  # EOFError if the other side is gone: the polish fails here
+        change = None
+        if sizes is not None:
+            (nG, nc, nf), E = sizes
+            G, d, flat, sf, cu = _unpack(self._in, nG, nc, nf)
+            change = ((flat, sf, cu, d), G, E)
+        replay(proposal, made, change)
+        return made
 
     def close(self):
         self.conn.close()
@@ -117,25 +143,58 @@ class Partner:
             self.pid = None
 
 
+def buffers(canvas):
+    """The two shared buffers two :class:`Partner` s hand the drawing's changes over in (made before
+    the fork): room for the error's blurred slope and four chords' footprints."""
+    import mmap
+
+    chord = 2 * (canvas.F + 2) * len(canvas._stamp.offsets)  # fine pixels of a chord, at most (with room)
+    size = 8 * canvas.P * canvas.P + 4 * chord * (8 + 4 + 4 + 4)
+    return mmap.mmap(-1, size), mmap.mmap(-1, size)
+
+
+_LAYOUT = (np.float64, np.float64, np.int32, np.float32, np.int32)  # G, d, flat, sf, cu
+
+
+def _pack(buf, G, d, flat, sf, cu):
+    """Write a change into ``buf``; returns the sizes :func:`_unpack` takes."""
+    at = 0
+    for arr, dtype in zip((G, d, flat, sf, cu), _LAYOUT):
+        view = np.frombuffer(buf, dtype=dtype, count=len(arr), offset=at)
+        view[:] = arr
+        at += view.nbytes
+    return len(G), len(cu), len(flat)
+
+
+def _unpack(buf, nG, nc, nf):
+    out, at = [], 0
+    for n, dtype in zip((nG, nc, nf, nf, nc), _LAYOUT):
+        view = np.frombuffer(buf, dtype=dtype, count=n, offset=at)
+        out.append(view)
+        at += view.nbytes
+    return out
+
+
 def twin(canvas, seq, order, pin_lines, *, after=None):
-    """Fork a twin that polishes the other half of each round with :func:`~stringbot.planner.polish.polish_pins`
+    """Fork a twin that polishes every other pin with :func:`~stringbot.planner.polish.polish_pins`
     (then calls ``after(canvas)``, the drawing polished, and ends); returns this side's :class:`Partner`."""
     from multiprocessing.connection import Pipe
 
     from .polish import polish_pins
 
     here, there = Pipe()
+    shared = buffers(canvas)
 
     def body():  # pragma: no cover - runs in the child
         here.close()
-        polish_pins(canvas, seq, order, pin_lines, partner=Partner(there, 1))
+        polish_pins(canvas, seq, order, pin_lines, partner=Partner(there, 1, shared))
         there.close()
         if after is not None:
             after(canvas)
 
     pid = _fork(body)
     there.close()
-    return Partner(here, 0, pid)
+    return Partner(here, 0, shared, pid)
 
 
 class TwinDrawing:
