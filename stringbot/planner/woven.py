@@ -123,6 +123,15 @@ class WovenCanvas:
     def footprint(self, a, b):
         """``(flat, cover, inv, cu)`` of chord ``(a, b)``: its fine pixels (each once), their coverage,
         and the grid pixels ``cu`` they fall in (each once; fine pixel ``i`` is in ``cu[inv[i]]``); cached."""
+        fp = self.stamped(a, b)
+        if fp[2] is None:  # the grid pixels: found the first time a change needs them (drawing does not)
+            flat = fp[0].astype(np.int64)
+            F, f = self.F, self.f
+            fp[3], fp[2] = self._unique((flat // (F * f)) * self.size + (flat % F) // f)
+        return fp
+
+    def stamped(self, a, b):
+        """``[flat, cover, inv, cu]`` of chord ``(a, b)`` as cached (``inv``, ``cu`` None until needed)."""
         key = (a, b) if a < b else (b, a)
         fp = self._fp.get(key)
         if fp is None:
@@ -132,10 +141,7 @@ class WovenCanvas:
                 if len(self._fp) >= MAX_CACHED // 2:
                     self._fp.clear()  # a footprint is stamped again exactly as it was
             flat, cov = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])
-            F, f = self.F, self.f
-            coarse = (flat // (F * f)) * self.size + (flat % F) // f
-            cu, inv = self._unique(coarse)
-            fp = self._fp[key] = (flat.astype(np.int32), cov.astype(np.float32), inv, cu)
+            fp = self._fp[key] = [flat.astype(np.int32), cov.astype(np.float32), None, None]
         return fp
 
     def _unique(self, idx):
@@ -165,7 +171,7 @@ class WovenCanvas:
         """Add chords' coverage to the fine canvas (``D`` and the error wait for :meth:`finish`)."""
         for a, b in chords:
             a, b = int(a), int(b)
-            flat, cov, _, _ = self.footprint(a, b)
+            flat, cov, _, _ = self.stamped(a, b)
             self.Sf[flat] += cov  # each fine pixel once per footprint
             self.uses[a, b] += 1
             if a != b:

@@ -384,7 +384,7 @@ def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs i
             return
         if msg[0] == "chords":
             for a, b in msg[1].tolist():
-                canvas.footprint(a, b)
+                canvas.stamped(a, b)
                 chosen.append((a, b))
             # a chord more than PATIENCE back is in the plan (an automatic run is cut back by fewer):
             # drawn now, in the plan's order, as a fresh build would
