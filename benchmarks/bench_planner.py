@@ -19,8 +19,12 @@ command can take 20 % more or less from one hour to the next.  The first and
 last lines time a fixed numpy workload (the chooser's inner step, 2000 times)
 so that runs made at different times can be compared.
 
+The command timed is the ``stringbot`` beside the interpreter that runs the
+benchmark (a venv's: run it with the venv's python, as the README sets up),
+with the package's bytecode compiled first (``--no-compile``: not).
+
 Usage: python benchmarks/bench_planner.py [IMAGE] [--repeat N] [--skip-600] [--methods residual,fitness,greedy]
-           [--pictures DIR]
+           [--pictures DIR] [--no-compile]
 """
 
 import argparse
@@ -38,8 +42,27 @@ DEFAULT_IMAGE = SHARED / "images" / "camera.png"
 
 
 def _command():
+    """The ``stringbot`` a user of this interpreter runs: the console script beside it (a venv's, as the
+    README installs it), else the one on PATH (a version manager's shim, such as pyenv's, adds about
+    0.1 s to every run), else ``python -c``."""
+    beside = Path(sys.executable).parent / "stringbot"
+    if beside.is_file():
+        return [str(beside)]
     exe = shutil.which("stringbot")
     return [exe] if exe else [sys.executable, "-c", "from stringbot.cli import main; main()"]
+
+
+def _compile_bytecode():
+    """Compile the package's bytecode, as ``pip install`` does for a regular install and any first run
+    does after an editable one (unless ``PYTHONDONTWRITEBYTECODE`` is set: then every run compiles the
+    sources again, about 0.06 s more).  Returns the package's folder."""
+    import compileall
+
+    import stringbot
+
+    pkg = Path(stringbot.__file__).parent
+    compileall.compile_dir(pkg, quiet=1)
+    return pkg
 
 
 def reference_seconds():
@@ -114,6 +137,8 @@ def main():
     ap.add_argument("--skip-600", action="store_true", help="skip the 600-pin, 801-px case")
     ap.add_argument("--methods", default="residual,fitness,greedy", help="methods to run (comma-separated)")
     ap.add_argument("--pictures", default=None, help="also time the default plan of every picture in this folder")
+    ap.add_argument("--no-compile", action="store_true",
+                    help="do not compile the package's bytecode first (what every run costs with PYTHONDONTWRITEBYTECODE)")
     opts = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="stringbot-bench-"))
     one = {"STRINGBOT_PROCESSES": "1"}
@@ -129,7 +154,11 @@ def main():
         raise SystemExit(f"--methods {opts.methods}: unknown {', '.join(sorted(unknown))}; expected residual, fitness, greedy")
     cases = [c for c in cases if c[0] in opts.methods.split(",")]
     _adopt_orphans()
-    print(f"image {opts.image}; {os.cpu_count()} cores; python {sys.version.split()[0]}")
+    print(f"image {opts.image}; {os.cpu_count()} cores; python {sys.version.split()[0]}; command {' '.join(_command())}")
+    if opts.no_compile:
+        print("bytecode: as it is (PYTHONDONTWRITEBYTECODE=%s)" % os.environ.get("PYTHONDONTWRITEBYTECODE", ""))
+    else:
+        print(f"bytecode: compiled in {_compile_bytecode()} first, as pip install or a first run does")
     print(f"machine speed: reference workload {reference_seconds():.2f} s")
     print(f"{'case':<36} {'cache':<6} {'wall s':>7} {'cpu s':>6} {'peak MB':>8} {'load':>5}  summary")
     try:
