@@ -96,6 +96,23 @@ def test_the_estimate_is_the_exact_change_where_the_chords_do_not_overlap():
     assert canvas.estimate(**near) != pytest.approx(canvas.delta(**near), rel=1e-9)
 
 
+def test_helps_says_what_the_estimate_says():
+    space = chord_space(60)
+    canvas, t, mask = canvas_for(horse_like(), space)
+    chords = [(0, 30), (5, 40), (12, 47), (20, 51), (30, 12), (44, 8)]
+    canvas.build(chords)
+    rng = np.random.default_rng(3)
+    said = set()
+    for _ in range(60):
+        (a, p), q = chords[int(rng.integers(len(chords)))], int(rng.integers(60))
+        if q in (a, p):
+            continue
+        change = dict(chords_out=[(a, p)], chords_in=[(a, q), (q, p)])
+        assert canvas.helps(**change) == (canvas.estimate(**change) < 0.0)
+        said.add(canvas.helps(**change))
+    assert said == {True, False}
+
+
 def _state(canvas):
     return [canvas.Sf, canvas.D, canvas.G, canvas.u, canvas.g, canvas.uses, np.array(canvas.E)]
 

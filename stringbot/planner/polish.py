@@ -70,7 +70,7 @@ def propose(canvas, seq, k, pin_lines, scratch):
     q = int(np.argmax(total))
     if not np.isfinite(total[q]):
         return None
-    if canvas.estimate(chords_out=[(a, p), (p, c)], chords_in=[(a, q), (q, c)]) < 0.0:
+    if canvas.helps(chords_out=[(a, p), (p, c)], chords_in=[(a, q), (q, c)]):  # by the estimate
         return (int(k), int(a), int(p), int(c), q)
     return None
 
