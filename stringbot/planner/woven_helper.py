@@ -1,4 +1,4 @@
-"""The polish on two cores: its canvas drawn while the threads are chosen, and its pins revisited in pairs.
+"""The polish on two cores: its canvas drawn while the threads are chosen, and its pins revisited by turns.
 
 The polish (:mod:`stringbot.planner.polish`) is most of a default plan's
 time.  On a machine with two cores (:func:`two_cores`):
