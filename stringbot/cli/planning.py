@@ -91,7 +91,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     from .._files import write_all_atomic
     from ..planner.build import plan_picture
     from ..planner.image import parse_crop
-    from ..planner.render import draw_woven, png_bytes
+    from ..planner.render import preview_png
 
     mach = None
     if machine is not None:
@@ -148,7 +148,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
         from ..motion import estimate
 
         est = estimate(p, mach)
-    png = png_bytes(draw_woven(p, size=PREVIEW_SIZE))
+    png = preview_png(p, PREVIEW_SIZE)  # the twin may have drawn and encoded it meanwhile
     write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""

@@ -19,7 +19,7 @@ from .chords import line_pixels, pin_pixels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw", "draw_woven", "woven_drawing", "fine_side", "png_bytes", "MAX_FINE"]
+__all__ = ["draw", "draw_woven", "woven_drawing", "fine_side", "png_bytes", "preview_png", "MAX_FINE"]
 
 #: largest side of the canvas a drawing as woven is made on before it is averaged down
 MAX_FINE = 4096
@@ -121,6 +121,15 @@ def woven_drawing(fine, size, *, board=255, thread=0):
 
         cov = resize_square(cov, size, anti_aliasing=False)
     return np.clip(np.rint(composite(cov, board=float(board), thread=float(thread))), 0, 255).astype(np.uint8)
+
+
+def preview_png(plan, size, *, board=255, thread=0):
+    """``png_bytes(draw_woven(plan, size=size, ...))``, taken as it is when the polish's twin has
+    encoded it already (the plan's ``woven_drawings``)."""
+    made = getattr(plan, "woven_drawings", None)
+    png = getattr(made, "png", None)
+    png = None if png is None else png(size, board, thread)
+    return png if png is not None else png_bytes(draw_woven(plan, size=size, board=board, thread=thread))
 
 
 def png_bytes(image):

@@ -204,7 +204,8 @@ class TwinDrawing:
     buffer and a pipe the twin says "done" on); called as a plan's
     ``woven_drawings(size, board, thread)``: the drawing (uint8, ``size`` px,
     black thread on white) once the twin has made it, or None (another size,
-    or the twin failed: the caller draws it).
+    or the twin failed: the caller draws it); :meth:`png` the same as PNG
+    bytes, which the twin encodes too.
 
     Parameters
     ----------
@@ -219,18 +220,23 @@ class TwinDrawing:
 
         self.size, self.model = int(size), model
         self._buf = mmap.mmap(-1, self.size * self.size)
+        self._png_buf = mmap.mmap(-1, self.size * (self.size + 1) + 65536)  # deflate's worst case, with room
         self._done, self._say = Pipe(duplex=False)
-        self._img = None
+        self._img = self._png = None
         self._pid = None
 
     def make(self, canvas):  # pragma: no cover - runs in the twin
         """Draw the canvas's coverage (the twin's, the same as the helper's) and say so."""
-        from .render import fine_side, woven_drawing
+        from .render import fine_side, png_bytes, woven_drawing
 
         if fine_side(self.model, self.size) == canvas.F:
             img = woven_drawing(np.minimum(canvas.Sf, 1.0).reshape(canvas.F, canvas.F), self.size)
             self._buf[:] = img.tobytes()
-            self._say.send_bytes(b"1")
+            png = png_bytes(img)
+            fits = len(png) <= len(self._png_buf)
+            if fits:
+                self._png_buf[:len(png)] = png
+            self._say.send_bytes(str(len(png) if fits else 0).encode())
         self._say.close()
 
     def sent(self):
@@ -245,8 +251,9 @@ class TwinDrawing:
         """Take the drawing in, once: wait for the twin's word (or its end)."""
         if self._done is not None:
             try:
-                self._done.recv_bytes()
+                n = int(self._done.recv_bytes())
                 self._img = np.frombuffer(self._buf, dtype=np.uint8).reshape(self.size, self.size).copy()
+                self._png = self._png_buf[:n] if n else None
             except (EOFError, OSError):
                 if warn:
                     log.warning("polish: the twin did not draw the preview; drawing it here")
@@ -272,6 +279,10 @@ class TwinDrawing:
             return None
         self._take()  # the helper is reaped later: its process takes a moment to end
         return self._img
+
+    def png(self, size, board, thread):
+        """The drawing as PNG bytes (:func:`~stringbot.planner.render.png_bytes` of it), or None."""
+        return self._png if self(size, board, thread) is not None else None
 
 
 class WovenHelper:
