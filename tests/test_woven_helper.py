@@ -69,7 +69,7 @@ def test_a_twin_that_dies_leaves_the_polish_here(monkeypatch):
         here, there = Pipe()
         pid = woven_helper._fork(lambda: os._exit(3))  # gone before its first proposal
         there.close()
-        return woven_helper.Partner(here, 0, woven_helper.buffers(canvas), pid)
+        return woven_helper.Partner(here, 0, woven_helper.buffers(canvas, 2), pid)
 
     monkeypatch.setattr(woven_helper, "twin", dying_twin)
     two = _plan(monkeypatch, 2)

@@ -14,9 +14,10 @@ on the horse and the camera, at a sixth more time.)
 
 The pins revisited are the ``budget`` whose chords draw most where the picture
 is already darker than wanted (a fixed number, so that the same picture
-always gives the same plan).  Each pin's proposal is made before the one
-ahead of it is settled, so that on two cores two processes take turns
-(:mod:`stringbot.planner.woven_helper`) and reach the same plan.
+always gives the same plan).  They go in blocks of two, each block's
+proposals made before the block ahead of it is settled, so that on two cores
+two processes take turns (:mod:`stringbot.planner.woven_helper`) and reach
+the same plan.
 """
 
 import logging
@@ -27,10 +28,12 @@ from .greedy import _PinLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "POLISH_SPACING"]
+__all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "POLISH_SPACING", "BLOCK"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
 POLISH_SPACING = 2.0
+#: pins whose proposals are made at a time, before the block ahead is settled (on two cores, by one process)
+BLOCK = 2
 
 
 def polish_lines(space, canvas):
@@ -101,20 +104,21 @@ def _touches(seq, proposal):
 def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
     """Revisit pins ``order`` (indices into ``seq``, inner ones) in turn; ``seq`` is changed in place.
 
-    The proposal for pin ``order[i]`` (:func:`propose`) is made against the
-    drawing as it is before proposal ``i - 1`` is settled; then proposal
-    ``i - 1`` is settled (:func:`settle`: kept only if the exact error
-    drops).  So two processes can take turns (``partner``): each makes the
-    proposal of every other pin while the other settles the one before, and
-    sends what its own settling did to the drawing, so that both hold the
-    same drawing and the plan is the same pin for pin.
+    The pins go in blocks of :data:`BLOCK`: the proposals for a block's pins
+    (:func:`propose`) are made against the drawing as it is before the block
+    ahead of it is settled; then that block's proposals are settled in turn
+    (:func:`settle`: each kept only if the exact error drops).  So two
+    processes can take turns (``partner``): each makes the proposals of every
+    other block while the other settles the block before, and sends what its
+    own settling did to the drawing, so that both hold the same drawing and
+    the plan is the same pin for pin.
 
     Parameters
     ----------
     partner : optional
         The other process (:class:`~stringbot.planner.woven_helper.Partner`):
-        ``partner.run(order, make, settle, replay)`` makes and settles this
-        process's proposals (``make(k)``, ``settle(proposal) -> (made, change)``)
+        ``partner.run(blocks, make, settle, replay)`` makes and settles this
+        process's blocks (``make(k)``, ``settle(proposal) -> (made, change)``)
         and replays the other's (``replay(proposal, made, change)``) in order.
         None: all of them here.
 
@@ -125,6 +129,7 @@ def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
     """
     npins = len(canvas.pin_xy)
     scratch = (np.empty(npins), np.empty(npins))
+    blocks = [order[j:j + BLOCK] for j in range(0, len(order), BLOCK)]
 
     def make(k):
         return propose(canvas, seq, k, pin_lines, scratch)
@@ -143,13 +148,13 @@ def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
             if made:
                 seq[proposal[0]] = proposal[4]
 
-        return partner.run(order, make, settle_here, replay)
-    rerouted, pending = 0, None
-    for k in order:
-        proposal = make(k)
-        rerouted += settle(canvas, seq, pending)
-        pending = proposal
-    return rerouted + settle(canvas, seq, pending)
+        return partner.run(blocks, make, settle_here, replay)
+    rerouted, pending = 0, []
+    for block in blocks:
+        proposals = [make(k) for k in block]
+        rerouted += sum(settle(canvas, seq, proposal) for proposal in pending)
+        pending = proposals
+    return rerouted + sum(settle(canvas, seq, proposal) for proposal in pending)
 
 
 def _chords(proposal):

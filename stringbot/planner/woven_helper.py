@@ -87,54 +87,46 @@ def _fork(body):
 class Partner:
     """One side of a polish in two processes (:func:`~stringbot.planner.polish.polish_pins`).
 
-    The proposals alternate between the sides: side 0 makes and settles
-    proposals 0, 2, 4, ..., side 1 the others.  Each side makes its next
-    proposal while the other settles the one before it; then it takes in
-    what that settling did to the drawing (:meth:`WovenCanvas.replay
+    The blocks of pins alternate between the sides: side 0 makes and settles
+    blocks 0, 2, 4, ..., side 1 the others.  Each side makes its next
+    block's proposals while the other settles the block before; then it
+    takes in what that settling did to the drawing (:meth:`WovenCanvas.replay
     <stringbot.planner.woven.WovenCanvas.replay>`: the values themselves,
     so both hold the same drawing), settles its own and hands that on.  The
     pipe carries the proposals and a few numbers; the drawing's changes go
-    through ``buffers`` (:func:`buffers`, shared, one per side), each
-    written only once the other side has read the one before.
+    through ``buffers`` (:func:`buffers`: per side, one per pin of a block,
+    shared), each written only once the other side has read the block before.
     """
 
     def __init__(self, conn, side, buffers, pid=None):
         self.conn, self.side, self.pid = conn, side, pid
         self._out, self._in = buffers[side], buffers[1 - side]
 
-    def run(self, order, make, settle, replay):
-        """Make and settle this side's proposals of ``order``, replay the other's; returns how many
-        were made (both sides')."""
-        n, rerouted = len(order), 0
+    def run(self, blocks, make, settle, replay):
+        """Make and settle this side's blocks, replay the other's; returns how many proposals were
+        made (both sides')."""
+        n, rerouted = len(blocks), 0
         mine = range(self.side, n, 2)
-        for i in mine:
-            proposal = make(order[i])  # against the drawing before proposal i - 1 is settled
-            if i >= 1:
+        for j in mine:
+            proposals = [make(k) for k in blocks[j]]  # against the drawing before block j - 1 is settled
+            if j >= 1:
                 rerouted += self._take(replay)
-            made, change = settle(proposal)
-            rerouted += made
-            self._give(proposal, made, change)
+            sent = []
+            for proposal, buf in zip(proposals, self._out):
+                made, change = settle(proposal)
+                rerouted += made
+                sent.append((proposal, made, None if change is None else _pack(buf, change)))
+            self.conn.send(sent)
         if (mine[-1] + 1 if len(mine) else 0) < n:
             rerouted += self._take(replay)
         return rerouted
 
-    def _give(self, proposal, made, change):
-        sizes = None
-        if change is not None:
-            (flat, sf, cu, d), G, E = change
-            sizes = _pack(self._out, G, d, flat, sf, cu)
-            sizes = (sizes, float(E))
-        self.conn.send((proposal, made, sizes))
-
     def _take(self, replay):
-        proposal, made, sizes = self.conn.recv()  # EOFError if the other side is gone: the polish fails here
-        change = None
-        if sizes is not None:
-            (nG, nc, nf), E = sizes
-            G, d, flat, sf, cu = _unpack(self._in, nG, nc, nf)
-            change = ((flat, sf, cu, d), G, E)
-        replay(proposal, made, change)
-        return made
+        made_here = 0
+        for (proposal, made, sizes), buf in zip(self.conn.recv(), self._in):  # EOFError: the other side is gone
+            replay(proposal, made, None if sizes is None else _unpack(buf, sizes))
+            made_here += made
+        return made_here
 
     def close(self):
         self.conn.close()
@@ -143,47 +135,51 @@ class Partner:
             self.pid = None
 
 
-def buffers(canvas):
-    """The two shared buffers two :class:`Partner` s hand the drawing's changes over in (made before
-    the fork): room for the error's blurred slope and four chords' footprints."""
+def buffers(canvas, block):
+    """The shared buffers two :class:`Partner` s hand the drawing's changes over in (made before the
+    fork): per side, ``block`` of them, each with room for the error's blurred slope and four chords'
+    footprints."""
     import mmap
 
     chord = 2 * (canvas.F + 2) * len(canvas._stamp.offsets)  # fine pixels of a chord, at most (with room)
     size = 8 * canvas.P * canvas.P + 4 * chord * (8 + 4 + 4 + 4)
-    return mmap.mmap(-1, size), mmap.mmap(-1, size)
+    return [[mmap.mmap(-1, size) for _ in range(block)] for _side in range(2)]
 
 
 _LAYOUT = (np.float64, np.float64, np.int32, np.float32, np.int32)  # G, d, flat, sf, cu
 
 
-def _pack(buf, G, d, flat, sf, cu):
-    """Write a change into ``buf``; returns the sizes :func:`_unpack` takes."""
+def _pack(buf, change):
+    """Write a change (``((flat, sf, cu, d), G, E)``) into ``buf``; returns what :func:`_unpack` takes."""
+    (flat, sf, cu, d), G, E = change
     at = 0
     for arr, dtype in zip((G, d, flat, sf, cu), _LAYOUT):
         view = np.frombuffer(buf, dtype=dtype, count=len(arr), offset=at)
         view[:] = arr
         at += view.nbytes
-    return len(G), len(cu), len(flat)
+    return len(G), len(cu), len(flat), float(E)
 
 
-def _unpack(buf, nG, nc, nf):
+def _unpack(buf, sizes):
+    nG, nc, nf, E = sizes
     out, at = [], 0
     for n, dtype in zip((nG, nc, nf, nf, nc), _LAYOUT):
         view = np.frombuffer(buf, dtype=dtype, count=n, offset=at)
         out.append(view)
         at += view.nbytes
-    return out
+    G, d, flat, sf, cu = out
+    return (flat, sf, cu, d), G, E
 
 
 def twin(canvas, seq, order, pin_lines, *, after=None):
-    """Fork a twin that polishes every other pin with :func:`~stringbot.planner.polish.polish_pins`
+    """Fork a twin that polishes every other block of pins with :func:`~stringbot.planner.polish.polish_pins`
     (then calls ``after(canvas)``, the drawing polished, and ends); returns this side's :class:`Partner`."""
     from multiprocessing.connection import Pipe
 
-    from .polish import polish_pins
+    from .polish import BLOCK, polish_pins
 
     here, there = Pipe()
-    shared = buffers(canvas)
+    shared = buffers(canvas, BLOCK)
 
     def body():  # pragma: no cover - runs in the child
         here.close()
