@@ -9,12 +9,13 @@ time.  On a machine with two cores (:func:`two_cores`):
   the sequence is done it draws it from the footprints it already has and
   polishes it.
 * For the polish, the helper forks a twin (:func:`twin`).  The pins are
-  revisited in turn (:func:`~stringbot.planner.polish.polish_pins`), each
-  proposal made before the one ahead of it is settled: the two processes
-  take every other pin, each making its next proposal while the other
-  settles the one before, then taking in what that settling changed (the
-  values, through a shared buffer) and settling its own.  So both hold the
-  same drawing after every pin, and each settles only its own proposals.
+  revisited in blocks of two (:func:`~stringbot.planner.polish.polish_pins`),
+  each block's proposals made before the block ahead of it is settled: the
+  two processes take every other block, each making its next block's
+  proposals while the other settles the block before, then taking in what
+  that settling changed (the values, through shared buffers) and settling
+  its own.  So both hold the same drawing after every block, and each
+  settles only its own proposals.
 
 Every footprint is what stamping it anywhere else gives, every change is
 taken in as the values the other process computed, and every decision is
