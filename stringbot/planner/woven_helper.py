@@ -371,22 +371,34 @@ class WovenHelper:
 
 
 def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs in the child
-    """The helper: stamp chords as they come, and in between lay out the polish's chord points;
-    polish on ``("polish", seq, budget, sent)``."""
+    """The helper: stamp chords as they come, and in between lay out the polish's chord points and
+    find the drawn chords' grid pixels; polish on ``("polish", seq, budget, sent)``."""
     from .polish import polish_lines, polish_plan
     from .residual import PATIENCE
 
     canvas = make_canvas()
     lines = polish_lines(space, canvas)
-    idle = iter(range(space.pins))  # the pins whose chord points are still to lay out
     chosen, drawn = [], 0  # chords chosen so far, and how many of them are drawn on the fine canvas
+
+    def idle_work():  # while no chords come: the polish's chord points, then the drawn chords' grid pixels
+        for a in range(space.pins):
+            yield lambda a=a: canvas.row(lines, a)
+        done = 0
+        while True:
+            if done < drawn:
+                yield lambda c=chosen[done]: canvas.footprint(*c)
+                done += 1
+            else:
+                yield None
+
+    idle = idle_work()
     while True:
         try:
             while not conn.poll():
-                a = next(idle, None)
-                if a is None:
+                step = next(idle)
+                if step is None:
                     break
-                canvas.row(lines, a)
+                step()
             msg = conn.recv()
         except EOFError:
             return
