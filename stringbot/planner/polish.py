@@ -44,15 +44,24 @@ def polish_lines(space, canvas):
 def badness_order(canvas, seq, pin_lines):
     """Inner pins of ``seq`` (indices), those whose two chords draw most where it is too dark first."""
     n = len(seq)
-    rows = {}
-    means = np.empty(n - 1)
+    means = np.zeros(n - 1)
+    pick, lengths, at, gain = [], [], [], []
     for i in range(n - 1):
         a, b = seq[i], seq[i + 1]
-        if a not in rows:
-            rows[a] = canvas.scores(pin_lines, a)
-        others, sc = rows[a]
+        others, pp, starts, counts = canvas.row(pin_lines, a)
         j = int(np.searchsorted(others, b))
-        means[i] = float(sc[j]) if j < len(others) and others[j] == b else 0.0
+        if j < len(others) and others[j] == b:  # chord i's points in pin a's row (as :meth:`scores` takes them)
+            end = int(starts[j + 1]) if j + 1 < len(starts) else len(pp)
+            pick.append(pp[int(starts[j]):end])
+            lengths.append(counts[j])
+            at.append(i)
+            gain.append(canvas.uses[a, b])
+    if pick:
+        pts = np.concatenate(pick)
+        first = np.concatenate([[0], np.cumsum([len(x) for x in pick])[:-1]])
+        sums = np.add.reduceat(canvas.g.take(pts), first)
+        gains = canvas.gains[np.minimum(np.asarray(gain), len(canvas.gains) - 1)]
+        means[at] = sums / np.asarray(lengths, dtype=np.float32) * gains
     return [int(k) for k in np.argsort(means[:-1] + means[1:], kind="stable") + 1]
 
 
@@ -163,7 +172,7 @@ def _chords(proposal):
     return [(a, p), (p, c), (a, q), (q, c)]
 
 
-def polish_plan(canvas, seq, space, *, budget, partner=None):
+def polish_plan(canvas, seq, space, *, budget, partner=None, cover=True):
     """Polish a pin sequence against the picture as woven (see the module notes).
 
     Parameters
@@ -178,6 +187,8 @@ def polish_plan(canvas, seq, space, *, budget, partner=None):
         ``partner(canvas, seq, order, pin_lines)`` returns a partner for
         :func:`polish_pins` (a forked process: :func:`~stringbot.planner.woven_helper.twin`),
         or None to polish alone.
+    cover : bool
+        Return the coverage (False: None, for a caller that does not want it).
 
     Returns
     -------
@@ -186,7 +197,8 @@ def polish_plan(canvas, seq, space, *, budget, partner=None):
         ``tried``, ``rerouted``, ``woven_rms_before`` and ``woven_rms`` (the model's as-woven
         error, rms over the frame).
     cover : ndarray of float32, shape (F, F), or None
-        The polished sequence's coverage on the fine canvas, capped at 1 (None when nothing was polished).
+        The polished sequence's coverage on the fine canvas, capped at 1 (None when nothing was polished, or
+        ``cover`` is False).
     """
     seq = [int(p) for p in seq]
     if len(seq) < 3 or budget <= 0:
@@ -206,4 +218,4 @@ def polish_plan(canvas, seq, space, *, budget, partner=None):
              "woven_rms": round(float(np.sqrt(max(canvas.error(), 0.0) / area)), 5)}
     log.info("polish: %d of %d pins rerouted; as-woven rms %.4f -> %.4f", rerouted, len(order),
              stats["woven_rms_before"], stats["woven_rms"])
-    return seq, stats, np.minimum(canvas.Sf, 1.0).reshape(canvas.F, canvas.F)
+    return seq, stats, np.minimum(canvas.Sf, 1.0).reshape(canvas.F, canvas.F) if cover else None

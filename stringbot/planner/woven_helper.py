@@ -432,13 +432,12 @@ def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs i
                 return mate
 
             try:
-                seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=partner)
+                seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=partner,
+                                                cover=drawing is None)  # else the twin draws the preview
             except BaseException:
                 for pid in twins:  # gone or going (an interrupt reaches the twin too)
                     os.waitpid(pid, 0)
                 raise
-            if drawing is not None:
-                cover = None  # the twin draws the preview: the canvas need not go back
             stats = dict(stats, behind_seconds=round(t - sent, 3), canvas_seconds=round(t1 - t, 3),
                          pins_seconds=round(time.perf_counter() - t1, 3), drawn_early=drawn)
             conn.send(("done", seq, stats, None if cover is None else cover.shape))
