@@ -43,25 +43,7 @@ def polish_lines(space, canvas):
 
 def badness_order(canvas, seq, pin_lines):
     """Inner pins of ``seq`` (indices), those whose two chords draw most where it is too dark first."""
-    n = len(seq)
-    means = np.zeros(n - 1)
-    pick, lengths, at, gain = [], [], [], []
-    for i in range(n - 1):
-        a, b = seq[i], seq[i + 1]
-        others, pp, starts, counts = canvas.row(pin_lines, a)
-        j = int(np.searchsorted(others, b))
-        if j < len(others) and others[j] == b:  # chord i's points in pin a's row (as :meth:`scores` takes them)
-            end = int(starts[j + 1]) if j + 1 < len(starts) else len(pp)
-            pick.append(pp[int(starts[j]):end])
-            lengths.append(counts[j])
-            at.append(i)
-            gain.append(canvas.uses[a, b])
-    if pick:
-        pts = np.concatenate(pick)
-        first = np.concatenate([[0], np.cumsum([len(x) for x in pick])[:-1]])
-        sums = np.add.reduceat(canvas.g.take(pts), first)
-        gains = canvas.gains[np.minimum(np.asarray(gain), len(canvas.gains) - 1)]
-        means[at] = sums / np.asarray(lengths, dtype=np.float32) * gains
+    means = canvas.chord_scores(pin_lines, list(zip(seq[:-1], seq[1:])))
     return [int(k) for k in np.argsort(means[:-1] + means[1:], kind="stable") + 1]
 
 
@@ -90,13 +72,10 @@ def propose(canvas, seq, k, pin_lines, scratch):
 def settle(canvas, seq, proposal):
     """Make a proposal of :func:`propose` if its pins are still there and the exact error drops
     (else leave the drawing as it was); ``seq`` is changed in place.  Returns 1 if made, else 0."""
-    if proposal is None:
-        return 0
-    k, a, p, c, q = proposal
-    old, new = [(a, p), (p, c)], [(a, q), (q, c)]
-    if (seq[k - 1], seq[k], seq[k + 1]) == (a, p, c):
+    if _touches(seq, proposal):
+        old, new = _changed(proposal)
         if canvas.apply(chords_out=old, chords_in=new) < 0.0:  # exact
-            seq[k] = q
+            seq[proposal[0]] = proposal[4]
             return 1
         canvas.apply(chords_out=new, chords_in=old)  # the estimate erred where the chords overlap
     return 0
@@ -147,13 +126,13 @@ def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
         def settle_here(proposal):
             touched = _touches(seq, proposal)
             made = settle(canvas, seq, proposal)
-            return made, ((canvas.change_record(_chords(proposal)), canvas.G, canvas.E) if touched else None)
+            return made, ((canvas.change_record(sum(_changed(proposal), [])), canvas.G, canvas.E) if touched else None)
 
         def replay(proposal, made, change):
             if change is not None:
                 record, G, E = change
-                old, new = _chords(proposal)[:2], _chords(proposal)[2:]
-                canvas.replay(record, G, E, chords_out=old if made else (), chords_in=new if made else ())
+                old, new = _changed(proposal) if made else ((), ())  # an undone change counts no chord
+                canvas.replay(record, G, E, chords_out=old, chords_in=new)
             if made:
                 seq[proposal[0]] = proposal[4]
 
@@ -166,10 +145,10 @@ def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
     return rerouted + sum(settle(canvas, seq, proposal) for proposal in pending)
 
 
-def _chords(proposal):
-    """The chords a proposal takes out and puts in: ``[(a, p), (p, c), (a, q), (q, c)]``."""
+def _changed(proposal):
+    """The chords a proposal takes out and those it puts in: ``[(a, p), (p, c)], [(a, q), (q, c)]``."""
     _, a, p, c, q = proposal
-    return [(a, p), (p, c), (a, q), (q, c)]
+    return [(a, p), (p, c)], [(a, q), (q, c)]
 
 
 def polish_plan(canvas, seq, space, *, budget, partner=None, cover=True):

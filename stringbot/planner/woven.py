@@ -263,11 +263,7 @@ class WovenCanvas:
 
     def apply(self, chords_out=(), chords_in=()):
         """Remove ``chords_out`` and add ``chords_in``; returns the exact change of ``E``."""
-        for chords, sign in ((chords_out, -1), (chords_in, 1)):
-            for a, b in chords:
-                self.uses[a, b] += sign
-                if a != b:
-                    self.uses[b, a] += sign
+        self._count(chords_out, chords_in)
         cp, dD = self._fine(chords_out, chords_in, "keep")
         if cp is None:
             return 0.0
@@ -278,6 +274,14 @@ class WovenCanvas:
         np.multiply(self.u, self.G, out=self.g)  # the same as where h is not 0, and cheaper than finding it
         self.E += dE
         return dE
+
+    def _count(self, chords_out, chords_in):
+        """Keep :attr:`uses` (how many times each chord is drawn) in step with a change."""
+        for chords, sign in ((chords_out, -1), (chords_in, 1)):
+            for a, b in chords:
+                self.uses[a, b] += sign
+                if a != b:
+                    self.uses[b, a] += sign
 
     # -- the same change in another process ----------------------------------------------------------------
 
@@ -294,11 +298,7 @@ class WovenCanvas:
         """Bring the drawing to the state another copy of it reached by :meth:`apply` (removing
         ``chords_out``, adding ``chords_in``; both empty when it was undone) and described by
         :meth:`change_record`, ``G`` and ``E``: the same values, not computed again."""
-        for chords, sign in ((chords_out, -1), (chords_in, 1)):
-            for a, b in chords:
-                self.uses[a, b] += sign
-                if a != b:
-                    self.uses[b, a] += sign
+        self._count(chords_out, chords_in)
         flat, sf, cu, d = record
         self.Sf[flat] = sf
         self.D[cu] = d
@@ -324,5 +324,28 @@ class WovenCanvas:
         ``pin_lines`` should not keep its points (``keep=False``): they are kept here, on the padded grid.
         """
         others, pp, starts, counts = self.row(pin_lines, a)
-        sc = np.add.reduceat(self.g.take(pp), starts) / counts
-        return others, sc * self.gains[np.minimum(self.uses[a, others], len(self.gains) - 1)]
+        return others, self._weigh(np.add.reduceat(self.g.take(pp), starts), counts, self.uses[a, others])
+
+    def chord_scores(self, pin_lines, chords):
+        """:meth:`scores` of the given chords ``(a, b)`` alone (each from its pin ``a``'s row, the
+        same values), 0 for a chord not in the row; one gather for all."""
+        out = np.zeros(len(chords))
+        pick, counts, at, uses = [], [], [], []
+        for i, (a, b) in enumerate(chords):
+            others, pp, starts, cnt = self.row(pin_lines, a)
+            j = int(np.searchsorted(others, b))
+            if j < len(others) and others[j] == b:
+                end = int(starts[j + 1]) if j + 1 < len(starts) else len(pp)
+                pick.append(pp[int(starts[j]):end])
+                counts.append(cnt[j])
+                at.append(i)
+                uses.append(self.uses[a, b])
+        if pick:
+            first = np.concatenate([[0], np.cumsum([len(x) for x in pick])[:-1]])
+            sums = np.add.reduceat(self.g.take(np.concatenate(pick)), first)
+            out[at] = self._weigh(sums, np.asarray(counts, dtype=np.float32), np.asarray(uses))
+        return out
+
+    def _weigh(self, sums, counts, uses):
+        """Mean along each chord times the share of a thread its next copy adds."""
+        return sums / counts * self.gains[np.minimum(uses, len(self.gains) - 1)]
