@@ -240,3 +240,13 @@ def test_polish_on_the_command_line(tmp_path):
     assert code == 2 and err.strip() == ("stringbot: error: --polish is a knob of --method residual only "
                                          "(not of greedy); leave it out")
     assert out.read_bytes() == before
+
+
+@pytest.mark.parametrize("m, width", [(256, 0.125), (256, 0.2), (200, 0.15), (128, 0.3)])
+def test_each_fine_pixel_falls_in_the_grid_pixel_under_it(m, width):
+    canvas = WovenCanvas(np.zeros((m, m)), np.ones((m, m)), np.array([[0.5, 0.0], [0.5, 1.0]]), width)
+    F, f = canvas.F, canvas.f
+    rows, cols = np.divmod(np.random.default_rng(m).integers(0, F * F, 20000), F)
+    cells = canvas._cells((rows * F + cols).astype(np.int32))
+    assert cells.dtype == np.int64
+    assert np.array_equal(cells, (rows // f) * m + cols // f)

@@ -76,3 +76,25 @@ def test_thread_model_units():
                 dict(diameter_mm=10.0, thread_mm=10.0)):
         with pytest.raises(ValueError):
             ThreadModel(**bad)
+
+
+@pytest.mark.parametrize("size, width", [(2048, 1.0), (401, 0.2), (300, 3.0)])
+def test_a_single_thread_stamp_is_the_footprint_of_that_thread_in_either_form(size, width):
+    from stringbot.planner.thread import SegmentStamp
+
+    stamp = SegmentStamp(size, width)
+    rng = np.random.default_rng(size)
+    ends = [((0.0, 0.0), (1.0, 1.0)), ((0.5, 0.0), (0.5, 1.0)), ((0.0, 0.5), (1.0, 0.5))]
+    ends += [tuple(map(tuple, rng.uniform(0.0, 1.0, (2, 2)))) for _ in range(30)]
+    for xy0, xy1 in ends:
+        xy0, xy1 = np.array(xy0), np.array(xy1)
+        flat, cov = stamp(xy0, xy1)
+        small_flat, small_cov = stamp(xy0, xy1, compact=True)
+        assert (flat.dtype, cov.dtype, small_flat.dtype, small_cov.dtype) == (np.int64, np.float64, np.int32, np.float32)
+        assert np.array_equal(flat, small_flat) and np.array_equal(cov, small_cov)
+        _, ref_flat, ref_cov = footprints(xy0[None], xy1[None], size, width)
+        order = np.argsort(flat, kind="stable")
+        ref_order = np.argsort(ref_flat, kind="stable")
+        assert np.array_equal(flat[order], ref_flat[ref_order])
+        assert np.allclose(cov[order], ref_cov[ref_order], atol=2e-3)  # the batch works in float32
+        assert flat.min(initial=0) >= 0 and flat.max(initial=0) < size * size

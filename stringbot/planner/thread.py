@@ -194,7 +194,9 @@ class SegmentStamp:
         K = int(math.ceil(reach * math.sqrt(2.0)))
         self.offsets = np.arange(-K + 1, K + 1, dtype=np.float64)
 
-    def __call__(self, xy0, xy1):
+    def __call__(self, xy0, xy1, *, compact=False):
+        """``(flat, cover)`` of the thread from ``xy0`` to ``xy1``; ``compact``: ``flat`` int32 and
+        ``cover`` float32 (the same values)."""
         n1 = self.size - 1
         x0, y0 = xy0[0] * self.size - 0.5, xy0[1] * self.size - 0.5
         x1, y1 = xy1[0] * self.size - 0.5, xy1[1] * self.size - 0.5
@@ -208,17 +210,26 @@ class SegmentStamp:
         scale = 1.0 / math.sqrt(1.0 + slope * slope) / _LUT_STEP
         lo, hi = max(math.ceil(a0), 0), min(math.floor(a1), n1)
         if hi < lo:
-            return np.zeros(0, np.int64), np.zeros(0)
+            return (np.zeros(0, np.int32), np.zeros(0, np.float32)) if compact else (np.zeros(0, np.int64), np.zeros(0))
         t = np.arange(lo, hi + 1, dtype=np.float64)
         m = b0 + (t - a0) * slope
         base = np.floor(m)
         mp = base[:, None] + self.offsets
-        idx = (np.abs(mp - m[:, None]) * scale).astype(np.int64)
+        d = mp - m[:, None]
+        np.abs(d, out=d)
+        d *= scale
+        idx = d.astype(np.int64)
         np.minimum(idx, self.top, out=idx)
-        cov = self.table[idx].astype(np.float64)
-        ok = (cov > 0) & (mp >= 0) & (mp <= n1)
-        flat = (t[:, None] * smaj + mp * smin)[ok].astype(np.int64)
-        return flat, cov[ok]
+        cov = self.table[idx]
+        ok = cov > 0
+        first, last = self.offsets[0], self.offsets[-1]
+        if min(base[0], base[-1]) + first < 0 or max(base[0], base[-1]) + last > n1:  # near the edge
+            ok &= (mp >= 0) & (mp <= n1)
+        mp *= smin
+        mp += (t * smaj)[:, None]
+        if compact:
+            return mp[ok].astype(np.int32), cov[ok]
+        return mp[ok].astype(np.int64), cov[ok].astype(np.float64)
 
 
 def footprints(xy0, xy1, size, width_px):

@@ -125,10 +125,17 @@ class WovenCanvas:
         and the grid pixels ``cu`` they fall in (each once; fine pixel ``i`` is in ``cu[inv[i]]``); cached."""
         fp = self.stamped(a, b)
         if fp[2] is None:  # the grid pixels: found the first time a change needs them (drawing does not)
-            flat = fp[0].astype(np.int64)
-            F, f = self.F, self.f
-            fp[3], fp[2] = self._unique((flat // (F * f)) * self.size + (flat % F) // f)
+            fp[3], fp[2] = self._unique(self._cells(fp[0]))
         return fp
+
+    def _cells(self, flat):
+        """The grid pixel of each fine pixel ``flat`` (int64: it indexes)."""
+        F, f, m = self.F, self.f, self.size
+        flat = flat.astype(np.int64)
+        if F & (F - 1) == 0 and f & (f - 1) == 0:  # powers of two (the usual case): shifts and masks
+            sf, sm = f.bit_length() - 1, m.bit_length() - 1
+            return (((flat >> (F.bit_length() - 1)) >> sf) << sm) | ((flat & (F - 1)) >> sf)
+        return (flat // (F * f)) * m + (flat % F) // f
 
     def stamped(self, a, b):
         """``[flat, cover, inv, cu]`` of chord ``(a, b)`` as cached (``inv``, ``cu`` None until needed)."""
@@ -140,8 +147,8 @@ class WovenCanvas:
                     del self._fp[k]
                 if len(self._fp) >= MAX_CACHED // 2:
                     self._fp.clear()  # a footprint is stamped again exactly as it was
-            flat, cov = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])
-            fp = self._fp[key] = [flat.astype(np.int32), cov.astype(np.float32), None, None]
+            flat, cov = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]], compact=True)
+            fp = self._fp[key] = [flat, cov, None, None]
         return fp
 
     def _unique(self, idx):
@@ -238,7 +245,7 @@ class WovenCanvas:
         if sign and lin >= 0.0:
             return float(lin), v, None
         b = self._blur(cp, v, self._koff1, self._kw1)
-        return float(lin + np.add.reduce(b * b)), v, None
+        return float(lin + np.dot(b, b)), v, None
 
     def _blur(self, cp, v, koff, kw):
         idx = (self.pidx[cp][:, None] + koff[None, :]).ravel()
