@@ -104,8 +104,8 @@ class Partner:
         self._out, self._in = buffers[side], buffers[1 - side]
 
     def run(self, blocks, make, settle, replay):
-        """Make and settle this side's blocks, replay the other's; returns how many proposals were
-        made (both sides')."""
+        """Make and settle this side's blocks, replay the other's; returns how many pins were
+        rerouted (both sides')."""
         n, rerouted = len(blocks), 0
         mine = range(self.side, n, 2)
         for j in mine:
