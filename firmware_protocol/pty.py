@@ -9,6 +9,12 @@ Time: in realtime mode the emulator's clock follows the wall clock; in fast
 mode it jumps to the next event whenever the host has nothing for it and
 nothing is waiting to be read (as fast as possible, in order).
 
+One simulator per path: while a server runs it holds an exclusive ``flock`` on
+``path + ".lock"`` (holding its process id), so a second server on the same path
+is refused (:class:`PtyPathError`) instead of taking the path over and leaving
+the first one running and unreachable.  The lock dies with its process (even a
+killed one): a path left by a dead simulator is taken over, its leftovers replaced.
+
 When the emulator reports its port down (a ``disconnect`` or ``power``
 fault), the server closes the pty: the host sees its port fail as with a
 pulled USB cable.  Once the emulator's port is back, and not before
@@ -31,12 +37,13 @@ import select
 import socket
 import stat
 import time
-import tty
 
-__all__ = ["PtyServer", "PtyPathError", "check_pty_path", "tell_operator", "OPERATOR_SUFFIX"]
+__all__ = ["PtyServer", "PtyPathError", "check_pty_path", "tell_operator", "OPERATOR_SUFFIX", "LOCK_SUFFIX"]
 
 #: The operator's socket lives at the pty's path plus this.
 OPERATOR_SUFFIX = ".operator"
+#: The running server's lock file (its pid inside) lives at the pty's path plus this.
+LOCK_SUFFIX = ".lock"
 
 log = logging.getLogger(__name__)
 
@@ -49,7 +56,44 @@ class PtyPathError(ValueError):
 
 
 def check_pty_path(path):
-    """Raise :class:`PtyPathError` unless ``path`` is absent or a (live or dangling) symlink to a pty."""
+    """Raise :class:`PtyPathError` unless ``path`` is absent or a (live or dangling) symlink to a pty
+    that no running simulator holds."""
+    pid = holder(path)
+    if pid is not None:
+        raise PtyPathError(_held(path, pid))
+    _check_kind(path)
+
+
+def holder(path):
+    """The process id of the running simulator that holds ``path`` (-1 when it cannot be read), or None."""
+    import fcntl
+
+    try:
+        fd = os.open(os.fspath(path) + LOCK_SUFFIX, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                return None
+            try:
+                return int(os.read(fd, 32).decode().strip() or -1)
+            except ValueError:
+                return -1
+        return None                     # nobody holds it: a leftover of a simulator that died
+    finally:
+        os.close(fd)
+
+
+def _held(path, pid):
+    who = f" (process {pid})" if pid > 0 else ""
+    stop = f"stop that one first (Ctrl-C in its terminal, or kill {pid})" if pid > 0 else "stop that one first"
+    return f"{os.fspath(path)!r} is in use by a running simulator{who}; expected another path, or {stop}"
+
+
+def _check_kind(path):
     if not os.path.lexists(path):
         return
     if os.path.islink(path) and os.readlink(path).startswith(_PTY_PREFIXES):
@@ -65,6 +109,8 @@ def tell_operator(path, message):
     Returns False (nothing sent) when there is no such socket: a real port, or a simulator gone.
     """
     sock_path = os.fspath(path) + OPERATOR_SUFFIX
+    if not hasattr(socket, "AF_UNIX"):  # Windows: no simulator on a pty there
+        return False
     try:
         if not stat.S_ISSOCK(os.stat(sock_path).st_mode):
             return False
@@ -105,6 +151,7 @@ class PtyServer:
         self._down_since = None
         self._wall = time.monotonic()
         self._operator = None           # the operator's datagram socket (see the module's notes)
+        self._lock = None               # fd of the held lock file (see the module's notes)
 
     # ---- the pty ----------------------------------------------------------------------------
     def start(self):
@@ -113,11 +160,53 @@ class PtyServer:
         Raises
         ------
         PtyPathError
-            If ``path`` exists and is not a symlink to a pty (nothing is opened or changed).
+            If ``path`` exists and is not a symlink to a pty, or a running simulator holds it
+            (nothing is opened or changed).
         """
-        self._open_operator()           # before the pty's path appears: whoever waits for it finds both
-        self._open()
+        _check_kind(self.path)
+        self._take_lock()               # before anything at the path is touched
+        try:
+            self._open_operator()       # before the pty's path appears: whoever waits for it finds both
+            self._open()
+        except BaseException:
+            self._drop_lock()
+            raise
         return self
+
+    def _take_lock(self):
+        """Hold ``path + LOCK_SUFFIX`` exclusively for the server's life, or raise PtyPathError."""
+        import fcntl
+
+        lock = self.path + LOCK_SUFFIX
+        while True:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise PtyPathError(_held(self.path, holder(self.path) or -1)) from None
+                raise
+            try:                        # the file its last holder removed on its way out: lock anew
+                same = os.path.samestat(os.fstat(fd), os.stat(lock))
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self._lock = fd
+
+    def _drop_lock(self):
+        if self._lock is None:
+            return
+        try:
+            os.unlink(self.path + LOCK_SUFFIX)   # while still held: nobody locks a file on its way out
+        except OSError:
+            pass
+        os.close(self._lock)
+        self._lock = None
 
     def _open_operator(self):
         if getattr(self.emulator, "world", None) is None:
@@ -156,7 +245,9 @@ class PtyServer:
                 log.warning("operator socket: ignored %r (%s)", data[:80], exc)
 
     def _open(self):
-        check_pty_path(self.path)   # also on a reopen: a file put there meanwhile is not clobbered
+        import tty
+
+        _check_kind(self.path)      # also on a reopen: a file put there meanwhile is not clobbered
         master, slave = os.openpty()
         tty.setraw(slave)
         name = os.ttyname(slave)
@@ -202,6 +293,7 @@ class PtyServer:
                 os.unlink(self.path)
         except OSError:
             pass
+        self._drop_lock()               # last: the path is free once its leftovers are gone
 
     # ---- the loop ---------------------------------------------------------------------------
     def serve(self, stop=None, *, poll=0.02):

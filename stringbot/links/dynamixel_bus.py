@@ -14,7 +14,6 @@ bus a ``fail(message) -> Exception`` that adds the step and the pin.
 """
 
 import logging
-import termios
 
 import dynamixel_sdk as sdk
 import serial
@@ -42,8 +41,12 @@ _HINTS = {sdk.COMM_RX_TIMEOUT: "it does not answer: check its power, cable, id a
           sdk.COMM_PORT_BUSY: "the port is busy"}
 
 
+try:                                    # POSIX only: stringbot.links loads on Windows too
+    from termios import error as _TermiosError
+except ImportError:                     # pragma: no cover - Windows
+    _TermiosError = OSError
 #: What the SDK's port raises when the adapter or its cable is gone (pyserial, the OS, termios).
-PORT_ERRORS = (serial.SerialException, OSError, termios.error)
+PORT_ERRORS = (serial.SerialException, OSError, _TermiosError)
 
 
 def _first_line(exc):

@@ -8,11 +8,11 @@ exit 2); anything else the port itself reports is a :class:`MachineFailure`.
 """
 
 import errno
-import fcntl
 import logging
+import os
 import socket
+import stat
 import sys
-import termios
 
 import serial
 from serial.urlhandler import protocol_socket
@@ -88,9 +88,11 @@ class _TcpSerial(protocol_socket.Serial):
         if not self.is_open:
             raise serial.PortNotOpenError()
         try:
+            import fcntl                # POSIX only, imported here: stringbot.links loads on Windows too
+            import termios
             buf = fcntl.ioctl(self._socket.fileno(), termios.FIONREAD, b"\0\0\0\0")
             return int.from_bytes(buf, sys.byteorder)
-        except OSError:
+        except (ImportError, OSError):
             return super().in_waiting
 
     def read(self, size=1):
@@ -157,6 +159,7 @@ def open_port(url, *, baudrate=115200, timeout=0.05, write_timeout=2.0):
         The port exists but could not be opened for another reason.
     """
     _register_sim()
+    _check_device(url)
     try:
         return _open_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout, exclusive=True)
     except BadInput:
@@ -172,6 +175,25 @@ def open_port(url, *, baudrate=115200, timeout=0.05, write_timeout=2.0):
         raise
     except (serial.SerialException, OSError, ValueError, NotImplementedError) as exc:
         raise _explain(url, exc) from None
+
+
+_EXPECTED = "expected a serial device (e.g. /dev/ttyUSB0, COM3) or a URL (socket://host:port, sim://)"
+_NOT_DEVICES = ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
+                (stat.S_ISSOCK, "a socket"), (stat.S_ISBLK, "a block device (a disk)"))
+
+
+def _check_device(url):
+    """A path that exists and is not a character device (a file, a folder, a FIFO...) is the user's
+    input, not a machine that failed: BadInput naming what it is, before it is opened."""
+    if "://" in url:
+        return
+    try:
+        mode = os.stat(url).st_mode
+    except (OSError, ValueError):
+        return                          # absent (or a name like COM3): opening it says why
+    kind = next((name for test, name in _NOT_DEVICES if test(mode)), None)
+    if kind is not None:
+        raise BadInput(f"port {url!r} is {kind}, not a serial device; {_EXPECTED}")
 
 
 def _explain(url, exc):
@@ -192,6 +214,10 @@ def _explain(url, exc):
             or "permission denied" in low:
         return BadInput(f"port {url!r} is not permitted for this user; "
                         "add yourself to the port's group (e.g. dialout) and log in again")
+    if code == errno.ENOTTY or "inappropriate ioctl" in low:
+        return BadInput(f"port {url!r} is not a serial device (it takes no serial settings); {_EXPECTED}")
+    if code == errno.EISDIR or "is a directory" in low:
+        return BadInput(f"port {url!r} is a folder, not a serial device; {_EXPECTED}")
     if code == errno.EBUSY or "busy" in low or "could not exclusively lock" in low \
             or "resource temporarily unavailable" in low:
         return BadInput(f"port {url!r} is busy: another program has it open; close it first")
