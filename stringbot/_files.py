@@ -14,7 +14,29 @@ Every output (``-o``, ``--preview``, ``--record``, ``--journal``) goes through
   permission is one line naming the path and the problem (:class:`BadInput`),
   with nothing on disk changed;
 * new files get ``0666`` less the umask (as ``open()`` would), existing ones keep
-  their mode.
+  their mode;
+* an existing file is replaced only when stringbot wrote it as the same kind of
+  output (:func:`check_ours`): a plan over a plan, a picture stringbot drew over
+  such a picture, G-code over stringbot's G-code, a record over a record; never
+  a user's picture, a journal, someone's G-code or any other file.  An empty
+  file holds nothing to lose and may be replaced.
+
+How a file is known as stringbot's (:func:`written_by_stringbot`):
+
+``plan``
+    JSON whose ``format`` is ``"stringbot-plan"``.
+``png``
+    A PNG carrying the ``tEXt`` chunk ``Software`` = ``stringbot ...``
+    (:func:`mark_png`, added to every preview and drawing).  A PNG written
+    before that marker existed is taken as stringbot's when it is square (as
+    every preview and drawing is) and a stringbot plan of the same name lies
+    beside it (``x.png`` beside ``x.json``, the preview's default name) whose
+    source picture it is not: re-planning or re-rendering over an old preview
+    keeps working, a photo that happens to share a plan's name is refused.
+``gcode``
+    Text that starts with ``; stringbot winding job``.
+``record``
+    JSON with a ``wraps`` list and ``collisions`` (a simulated world's record).
 """
 
 import errno
@@ -26,7 +48,8 @@ from pathlib import Path
 from .errors import BadInput
 
 __all__ = ["write_atomic", "write_all_atomic", "check_output_path", "check_not_same_file", "problem",
-           "output_error", "default_mode", "STDOUT"]
+           "output_error", "default_mode", "STDOUT", "check_ours", "written_by_stringbot", "describe", "mark_png",
+           "check_suffix", "GCODE_HEAD"]
 
 STDOUT = "-"
 
@@ -124,6 +147,198 @@ def check_not_same_file(output, source, *, what="output", source_what="input"):
         same = False
     if same:
         raise BadInput(f"{what} path {str(output)!r} is the {source_what} itself; expected another file")
+
+
+#: The first line of every G-code program stringbot writes (``motion.gcode``).
+GCODE_HEAD = "; stringbot winding job"
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: The tEXt chunk that marks a PNG as drawn by stringbot: keyword, text prefix.
+PNG_SOFTWARE = (b"Software", b"stringbot")
+#: What an existing file must be for each kind of output to replace it.
+_KIND_NAMES = {"plan": "a plan stringbot wrote", "png": "a picture stringbot drew",
+               "gcode": "G-code stringbot wrote", "record": "a simulated world's record"}
+_HEAD = 1 << 16          # a PNG's marker sits right after its header; a journal's header is its first line
+
+
+def check_suffix(path, suffixes, *, option="-o"):
+    """Refuse a file name that does not end in one of ``suffixes`` (e.g. ``(".png",)``): stringbot writes
+    the format the name promises, never PNG bytes under a ``.jpg`` name.
+
+    Raises
+    ------
+    BadInput
+        ``"-o 'photo.jpg'; expected a file name ending in .png"``.
+    """
+    if str(path) == STDOUT or os.path.splitext(str(path))[1].lower() not in suffixes:
+        raise BadInput(f"{option} {str(path)!r}; expected a file name ending in {' or '.join(suffixes)}")
+
+
+def mark_png(data):
+    """``data`` (PNG bytes) with the ``Software = stringbot <version>`` tEXt chunk after its header.
+
+    The marker is what :func:`written_by_stringbot` looks for before replacing a PNG.  Bytes that
+    are not a PNG, or are marked already, come back unchanged.
+    """
+    import zlib
+
+    from . import __version__
+
+    data = bytes(data)
+    if not data.startswith(_PNG_SIGNATURE) or data[12:16] != b"IHDR" or _png_text(data).get(PNG_SOFTWARE[0]):
+        return data
+    end = 8 + 12 + int.from_bytes(data[8:12], "big")      # after the IHDR chunk
+    body = PNG_SOFTWARE[0] + b"\0" + PNG_SOFTWARE[1] + b" " + __version__.encode("latin-1")
+    chunk = len(body).to_bytes(4, "big") + b"tEXt" + body + zlib.crc32(b"tEXt" + body).to_bytes(4, "big")
+    return data[:end] + chunk + data[end:]
+
+
+def _png_text(head):
+    """``{keyword: text}`` of the tEXt chunks before the image data in ``head`` (a PNG's first bytes)."""
+    out, at = {}, 8
+    while at + 8 <= len(head):
+        n, kind = int.from_bytes(head[at:at + 4], "big"), head[at + 4:at + 8]
+        if kind in (b"IDAT", b"IEND"):
+            break
+        if kind == b"tEXt":
+            key, _, text = head[at + 8:at + 8 + n].partition(b"\0")
+            out[key] = text
+        at += 12 + n
+    return out
+
+
+def _read_head(path):
+    try:
+        with open(path, "rb") as f:
+            return f.read(_HEAD)
+    except OSError:
+        return None
+
+
+def _json(path):
+    import json
+    try:
+        with open(path, "rb") as f:
+            doc = json.load(f)
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _is_plan(path):
+    doc = _json(path)
+    return doc is not None and doc.get("format") == "stringbot-plan"
+
+
+def _sha256(path):
+    import hashlib
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _old_preview(path, head):
+    """A square PNG without the marker beside a stringbot plan of its name that it is not the source of:
+    a preview (or drawing) stringbot wrote before PNGs were marked."""
+    if head[12:16] != b"IHDR" or head[16:20] != head[20:24]:
+        return False
+    stem = os.path.splitext(str(path))[0]            # the preview's default is the plan's name with .png
+    doc = next((d for d in map(_json, (stem + ".json", stem)) if d and d.get("format") == "stringbot-plan"), None)
+    if doc is None:
+        return False
+    source = doc.get("source") if isinstance(doc.get("source"), dict) else {}
+    try:
+        return source.get("sha256") != _sha256(path)
+    except OSError:
+        return False
+
+
+def written_by_stringbot(path, kind):
+    """Whether the existing file ``path`` is an output of ``kind`` that stringbot wrote (see the module
+    notes): ``"plan"``, ``"png"``, ``"gcode"`` or ``"record"``."""
+    if kind == "plan":
+        return _is_plan(path)
+    if kind == "record":
+        doc = _json(path)
+        return doc is not None and isinstance(doc.get("wraps"), list) and "collisions" in doc
+    head = _read_head(path)
+    if head is None:
+        return False
+    if kind == "gcode":
+        return head.startswith(GCODE_HEAD.encode())
+    if kind == "png":
+        if not head.startswith(_PNG_SIGNATURE):
+            return False
+        return _png_text(head).get(PNG_SOFTWARE[0], b"").startswith(PNG_SOFTWARE[1]) or _old_preview(path, head)
+    raise ValueError(f"kind {kind!r}; expected one of {', '.join(_KIND_NAMES)}")
+
+
+_MAGIC = ((_PNG_SIGNATURE, "a PNG picture"), (b"\xff\xd8\xff", "a JPEG picture"), (b"GIF8", "a GIF picture"),
+          (b"II*\0", "a TIFF picture"), (b"MM\0*", "a TIFF picture"), (b"BM", "a BMP picture"),
+          (b"%PDF", "a PDF"), (b"<svg", "an SVG picture"), (b"<?xml", "an XML file"))
+
+
+def describe(path):
+    """What the existing file ``path`` is, in a few words (``"a winding journal"``, ``"a JPEG picture"``);
+    None when it is none of the kinds known here."""
+    head = _read_head(path) or b""
+    if head.startswith(b"{"):
+        line = head.split(b"\n", 1)[0]
+        if b'"stringbot-journal"' in line:
+            return "a winding journal"
+        if written_by_stringbot(path, "plan"):
+            return "a stringbot plan"
+        if written_by_stringbot(path, "record"):
+            return "a simulated world's record"
+        return "a JSON file stringbot did not write"
+    if head.startswith(GCODE_HEAD.encode()):
+        return "G-code stringbot wrote"
+    if head[4:12] in (b"ftypisom", b"ftypmp42") or head[4:8] == b"ftyp":
+        return "a video"
+    for magic, name in _MAGIC:
+        if head.startswith(magic):
+            if magic == _PNG_SIGNATURE and written_by_stringbot(path, "png"):
+                return "a picture stringbot drew"
+            return name
+    return None
+
+
+def check_ours(path, kind, *, what, instead):
+    """Refuse to replace the file at ``path`` unless stringbot wrote it as ``kind`` (or it is empty).
+
+    Call it before any work, after :func:`check_output_path`.  A path that does not exist (or
+    ``-``) passes.
+
+    Parameters
+    ----------
+    path : str or Path
+    kind : {"plan", "png", "gcode", "record"}
+    what : str
+        The output's name in the message (``"plan"``, ``"preview"``).
+    instead : str
+        What to do instead, e.g. ``"give another -o"``.
+
+    Raises
+    ------
+    BadInput
+        ``"<what> path 'x' exists and is <what it is>, not <kind's name>; not replacing it: <instead>
+        (or remove that file)"``.
+    """
+    if str(path) == STDOUT:
+        return
+    target = _target(Path(path))
+    try:
+        if not target.is_file() or target.stat().st_size == 0:
+            return
+    except OSError:
+        return
+    if written_by_stringbot(target, kind):
+        return
+    it = describe(target)
+    it = f"is {it}, not" if it else "is not"
+    raise BadInput(f"{what} path {str(path)!r} exists and {it} {_KIND_NAMES[kind]}; not replacing it: {instead} "
+                   "(or remove that file)")
 
 
 def default_mode(path):

@@ -16,6 +16,8 @@ from PIL import Image
 from stringbot.planner import read_plan
 
 SMALL = ["--pins", "60", "--size", "101"]
+#: A plan file stringbot wrote, as far as `plan -o` can tell (only such a file is replaced)
+OLD_PLAN = '{"format": "stringbot-plan", "note": "an old plan"}'
 
 
 def run(*args, cwd=None, env=None):
@@ -191,10 +193,10 @@ def bad_pictures(tmp_path):
 def test_bad_pictures(tmp_path, which):
     path = bad_pictures(tmp_path)[which]
     out = tmp_path / "old.json"
-    out.write_text("old plan")
+    out.write_text(OLD_PLAN)
     code, _, err = run("plan", path, "-o", out, *SMALL)
     one_error_line(code, err, {"truncated": "runcated"}.get(which, which))
-    assert out.read_text() == "old plan"
+    assert out.read_text() == OLD_PLAN
 
 
 @pytest.mark.parametrize("args, words", [
@@ -221,10 +223,10 @@ def test_bad_pictures(tmp_path, which):
 ])
 def test_bad_options(tmp_path, picture, args, words):
     out = tmp_path / "p.json"
-    out.write_text("old plan")
+    out.write_text(OLD_PLAN)
     code, _, err = run("plan", picture, "-o", out, *args)
     one_error_line(code, err, words)
-    assert out.read_text() == "old plan"
+    assert out.read_text() == OLD_PLAN
 
 
 def test_bad_outputs(tmp_path, picture):
@@ -232,10 +234,10 @@ def test_bad_outputs(tmp_path, picture):
     one_error_line(code, err, "does not exist")
     code, _, err = run("plan", picture, "-o", tmp_path, *SMALL)
     one_error_line(code, err, "is a folder")
-    (tmp_path / "keep.json").write_text("old plan")
+    (tmp_path / "keep.json").write_text(OLD_PLAN)
     code, _, err = run("plan", picture, "-o", tmp_path / "keep.json", "--preview", tmp_path / "no" / "x.png", *SMALL)
     one_error_line(code, err, "does not exist")
-    assert (tmp_path / "keep.json").read_text() == "old plan"
+    assert (tmp_path / "keep.json").read_text() == OLD_PLAN
     before = picture.read_bytes()
     code, _, err = run("plan", picture, "-o", tmp_path / "p.json", "--preview", picture, *SMALL)
     one_error_line(code, err, "is the picture itself")

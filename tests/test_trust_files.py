@@ -230,7 +230,7 @@ def test_gcode_replaces_only_gcode_that_stringbot_wrote(tmp_path, plan_file):
     mine = tmp_path / "mine.gcode"
     mine.write_text("G1 X10 ; my own program\n")
     one_error_line(*run("gcode", plan_file, "--machine", "grbl-ring", "-o", mine)[::2],
-                   "is not G-code written by stringbot")
+                   "not G-code stringbot wrote")
     assert mine.read_text() == "G1 X10 ; my own program\n"
     ours = tmp_path / "job.gcode"
     assert run("gcode", plan_file, "--machine", "grbl-ring", "-o", ours)[0] == 0

@@ -42,7 +42,7 @@ def test_the_plan_is_not_an_output(tmp_path, plan_path, capsys, option, monkeypa
 
 
 @pytest.mark.parametrize("option, words", [
-    ("--record", "is not a simulated world's record"),
+    ("--record", "not a simulated world's record"),
     ("--journal", "is not a stringbot journal"),
 ])
 def test_a_foreign_file_is_not_overwritten(tmp_path, plan_path, capsys, option, words):

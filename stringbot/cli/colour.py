@@ -30,7 +30,7 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     from ..planner.image import parse_crop
     from ..planner.palette import WHITE, parse_background, parse_colors
     from ..planner.progress import reporting
-    from .planning import check_plan_outputs
+    from .planning import check_plan_outputs, warn_small_crop
     from .progress import PlanProgress
 
     mono = [f"--{name.replace('_', '-')}" if name != "T" else "-T" for name in MONO_ONLY if name in given]
@@ -41,6 +41,8 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     palette = parse_colors(colors if colors is not None else "black", background=board)
     preview = preview or os.path.splitext(output)[0] + ".png"
     check_plan_outputs(output, preview, sources=((image, "picture"),), force=force, lines=lines)
+    if crop is None:
+        warn_small_crop(image, fit=False)
     shown = PlanProgress().start()
     try:
         with reporting(shown):
@@ -76,16 +78,18 @@ def _short(color):
 
 
 def png_rgb_bytes(rgb):
-    """PNG bytes of an sRGB float image in [0, 1]."""
+    """PNG bytes of an sRGB float image in [0, 1], marked as stringbot's (:func:`~stringbot._files.mark_png`)."""
     import io
 
     import numpy as np
     from PIL import Image
 
+    from .._files import mark_png
+
     buf = io.BytesIO()
     Image.fromarray(np.clip(np.rint(np.asarray(rgb) * 255.0), 0, 255).astype(np.uint8), "RGB").save(
         buf, format="PNG", compress_level=3)
-    return buf.getvalue()
+    return mark_png(buf.getvalue())             # stringbot's: a later plan or render may replace it
 
 
 def estimate_lines(plan, machine):

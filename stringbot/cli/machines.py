@@ -67,12 +67,12 @@ def gcode_cmd(plan, machine, output):
     import os
     import sys
 
-    from .._files import check_not_same_file, check_output_path, write_atomic
+    from .._files import check_not_same_file, check_ours, check_output_path, write_atomic
     from ..motion import dialect_for, format_duration, gcode_job
 
     check_output_path(output, what="G-code", allow_stdout=True)
     check_not_same_file(output, plan, what="G-code", source_what="plan")
-    _refuse_foreign_gcode(output)
+    check_ours(output, "gcode", what="G-code", instead="give a new file")  # never someone's own program
     p, m = _plan_and_machine(plan, machine)
     dialect_for(m)
     text = gcode_job(p, m, plan_name=os.path.basename(plan))
@@ -86,26 +86,6 @@ def gcode_cmd(plan, machine, output):
     changes = f", {len(p.colors) - 1} spool change(s) (M0)" if len(p.colors) > 1 else ""
     click.echo(f"{len(p.sequence)} pins, {text.count(chr(10))} lines, about {format_duration(est.seconds)}, "
                f"{est.thread_m:.1f} m of thread{changes} -> {output}", err=output == "-")
-
-
-GCODE_HEAD = "; stringbot winding job"
-
-
-def _refuse_foreign_gcode(output):
-    """Only G-code that stringbot wrote (or an empty file) is replaced: never someone's own program."""
-    import os
-    if output == "-" or not os.path.isfile(output) or os.path.getsize(output) == 0:
-        return
-    try:
-        with open(output, "rb") as f:
-            head = f.read(len(GCODE_HEAD))
-    except OSError as exc:
-        from .._files import problem
-        raise BadInput(f"G-code path {output!r} cannot be read ({problem(exc)}); expected a G-code file that "
-                       "stringbot wrote, to replace") from None
-    if head != GCODE_HEAD.encode():
-        raise BadInput(f"G-code path {output!r} exists and is not G-code written by stringbot; not overwriting "
-                       "it: give a new file (or remove that one)")
 
 
 @cli.command("estimate")

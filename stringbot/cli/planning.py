@@ -88,7 +88,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
-    from .._files import write_all_atomic
+    from .._files import mark_png, write_all_atomic
     from ..planner.build import plan_picture
     from ..planner.image import parse_crop
     from ..planner.render import preview_png
@@ -127,6 +127,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     preview = preview or os.path.splitext(output)[0] + ".png"
     check_plan_outputs(output, preview, sources=((image, "picture"), (importance, "mask")), force=force,
                        lines=lines)
+    if crop is None and not fit:
+        warn_small_crop(image)
     from ..planner.progress import reporting
     from .progress import PlanProgress
 
@@ -148,7 +150,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
         from ..motion import estimate
 
         est = estimate(p, mach)
-    png = preview_png(p, PREVIEW_SIZE)  # the twin may have drawn and encoded it meanwhile
+    png = mark_png(preview_png(p, PREVIEW_SIZE))  # the twin may have drawn and encoded it meanwhile
     write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""
@@ -157,6 +159,9 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     thread = f"{s['thread_diameters'] * p.diameter_mm / 1000.0:.1f} m"
     click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
                f"{s['seconds']:.2f} s -> {output} (preview {preview})")
+    if p.stats.get("line_cap"):
+        warn(f"planning stopped at the cap of {p.stats['line_cap']} lines, not because the picture was matched: "
+             f"it asks for more thread than that; check the preview {preview!r}, or give --lines N")
     if mach is not None:
         if not p.connected:
             click.echo(f"machine {mach.name}: a disconnected chord set cannot be wound; no machine-time estimate")
@@ -167,12 +172,39 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                        f"{est.thread_m:.1f} m of thread")
 
 
+#: The default crop (the largest centred square) warns when it keeps less than this share of the picture.
+MIN_CROP_SHARE = 0.5
+
+
+def warn(text):
+    """One warning line on standard error: the command goes on."""
+    click.echo(f"stringbot: warning: {text}", err=True)
+
+
+def warn_small_crop(image, *, fit=True):
+    """Warn when the default crop keeps less than :data:`MIN_CROP_SHARE` of ``image`` (a panorama or a
+    strip: its centre only), naming ``--fit`` (where the command has it) and ``--crop``."""
+    from ..planner.image import default_crop_share
+
+    share, (w, h) = default_crop_share(image)
+    if share >= MIN_CROP_SHARE:
+        return
+    side = min(w, h)
+    other = "--fit paints all of it (letterboxed), --crop CX,CY,R another part" if fit else \
+        "--crop CX,CY,R picks another part"
+    warn(f"the frame takes only the centre of the picture: {side} x {side} of its {w} x {h} pixels "
+         f"({100 * share:.0f} %); {other}")
+
+
 def check_plan_outputs(output, preview, *, sources, force, lines):
     """Refuse, before any work, outputs that cannot be written or would destroy something: a
     plan or preview path that is not a regular file, one that is a ``sources`` file
-    (``(path, name)`` pairs), a preview that is the plan, a plan that a journal is winding
+    (``(path, name)`` pairs), a preview that is the plan, a preview not named .png, a file
+    stringbot did not write as a plan (preview) there, a plan that a journal is winding
     (unless ``force``), and a non-positive ``lines``."""
-    from .._files import check_not_same_file, check_output_path
+    import os
+
+    from .._files import check_not_same_file, check_ours, check_output_path, check_suffix
 
     check_output_path(output, what="plan")
     check_output_path(preview, what="preview")
@@ -181,6 +213,13 @@ def check_plan_outputs(output, preview, *, sources, force, lines):
             if src:
                 check_not_same_file(out, src, what=what, source_what=name)
     check_not_same_file(preview, output, what="preview", source_what="plan")
+    default = preview == os.path.splitext(output)[0] + ".png"
+    if not default:
+        check_suffix(preview, (".png",), option="--preview")
+    check_ours(output, "plan", what="plan", instead="give another -o")
+    check_ours(preview, "png", what="preview",
+               instead="it is the preview's default path (the plan's name with .png): give --preview OTHER.png"
+               if default else "give another --preview")
     if not force:
         _refuse_a_wound_plan(output)
     if lines != "auto" and lines <= 0:
@@ -213,7 +252,7 @@ def _refuse_a_wound_plan(output):
 def render_cmd(plan, output, size, binary):
     """Draw PLAN as woven: its threads at their real width (the plan's thread_mm on diameter_mm); a colour
     plan in its colours, layer on layer."""
-    from .._files import check_not_same_file, check_output_path, write_atomic
+    from .._files import check_not_same_file, check_ours, check_output_path, check_suffix, mark_png, write_atomic
     from ..planner.plan_file import read_plan
     from ..planner.render import draw, draw_woven, png_bytes
 
@@ -221,17 +260,45 @@ def render_cmd(plan, output, size, binary):
         raise BadInput(f"--size {size}; expected 16..8001 pixels")
     check_output_path(output, what="drawing")
     check_not_same_file(output, plan, what="drawing", source_what="plan")
+    check_suffix(output, (".png",))
     p = read_plan(plan)
+    _refuse_the_source(output, plan, p)
+    check_ours(output, "png", what="drawing", instead="give another -o")
     if not p.is_mono:
         from .colour import render_colour
         if binary:
             raise BadInput(f"--binary draws one black thread, but plan {plan!r} has {len(p.colors)} colour "
                            "layer(s); expected no --binary with a colour plan (it is drawn as woven)")
         return render_colour(p, output, size)
-    write_atomic(output, png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size)), what="drawing")
+    write_atomic(output, mark_png(png_bytes(draw(p, size=size) if binary else draw_woven(p, size=size))),
+                 what="drawing")
     m = p.thread_model()
     how = "as 1-pixel lines" if binary else f"as woven ({m.thread_mm:g} mm thread on {m.diameter_mm:g} mm)"
     click.echo(f"{len(p.chord_list())} chords drawn {how} at {size} x {size} -> {output}")
+
+
+def _refuse_the_source(output, plan_path, plan):
+    """Refuse to draw over the picture ``plan`` was made from: by its path (as given, or beside the
+    plan) or, wherever it lies, by its content (the plan's ``source.sha256``)."""
+    import os
+
+    from .._files import check_not_same_file
+
+    source = plan.source.get("path")
+    if source:
+        for path in {source, os.path.join(os.path.dirname(plan_path), source)}:
+            check_not_same_file(output, path, what="drawing", source_what="plan's source picture")
+    sha = plan.source.get("sha256")
+    if sha and os.path.isfile(output):
+        from ..planner.image import sha256_file
+
+        try:
+            same = sha256_file(output) == sha
+        except OSError:
+            same = False
+        if same:
+            raise BadInput(f"drawing path {output!r} is the plan's source picture (the same content); "
+                           "expected another file")
 
 
 @cli.command("score")

@@ -184,8 +184,9 @@ def simulate(machine_name, pty_path, record, realtime, faults, settings):
     from firmware_protocol.pty import PtyPathError, PtyServer, check_pty_path
     machine = load_machine(machine_name)
     if record is not None:
-        from .._files import check_output_path
+        from .._files import check_ours, check_output_path
         check_output_path(record, what="--record")
+        check_ours(record, "record", what="--record", instead="give a new file")
     try:
         check_pty_path(pty_path)            # before the record file is written
     except PtyPathError as exc:

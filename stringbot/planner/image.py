@@ -29,7 +29,7 @@ from ..errors import BadInput
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "fit_crop", "parse_crop", "MAX_PIXELS"]
+__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "default_crop_share", "fit_crop", "parse_crop", "MAX_PIXELS"]
 
 MAX_PIXELS = 1_000_000_000      # refuse larger pictures outright
 MAX_DECODED_BYTES = 1_200_000_000  # PIL's decoded image must fit in this
@@ -90,6 +90,16 @@ def _upright_size(path):
     except Exception:  # noqa: BLE001 -- a damaged EXIF block: as stored
         pass
     return w, h
+
+
+def default_crop_share(path):
+    """How much of the picture the default crop keeps: ``(share, (width, height))``.
+
+    The default crop is the largest centred square (the circle's bounding square), so the share of
+    the picture's area is the shorter side over the longer (1 for a square picture, 0.01 for 2000 x 20).
+    """
+    w, h = _upright_size(path)
+    return min(w, h) / max(w, h), (w, h)
 
 
 def fit_crop(path, frame="circle"):

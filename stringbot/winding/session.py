@@ -10,7 +10,7 @@ from pathlib import Path
 
 from firmware_protocol.machine import load_machine
 
-from .._files import check_output_path
+from .._files import check_ours, check_output_path
 from ..errors import BadInput
 from ..links import open_link, sim_url
 from ..links.settings_check import require_agreement
@@ -98,17 +98,7 @@ def _check_record_path(record, plan_path):
         raise BadInput(f"record folder {str(record.parent)!r} does not exist; create it first "
                        f"(for --record {str(record)!r})")
     check_output_path(record, what="--record")     # a device, FIFO or socket is never replaced
-    if record.exists() and record.stat().st_size > 0:
-        import json
-        try:
-            doc = json.loads(record.read_bytes())
-            ours = isinstance(doc, dict) and isinstance(doc.get("wraps"), list) \
-                and "collisions" in doc
-        except (OSError, ValueError):
-            ours = False
-        if not ours:
-            raise BadInput(f"--record {str(record)!r} exists and is not a simulated world's record; "
-                           "not overwriting it: give a new file (or remove that one)")
+    check_ours(record, "record", what="--record", instead="give a new file")
 
 
 def _machine_ref(machine):
