@@ -7,10 +7,12 @@ process, and the simulated world's record must equal the plan.
 """
 
 import json
+import os
 import shutil
 import signal
 import socket
 import subprocess
+import sys
 import time
 
 import pytest
@@ -146,3 +148,46 @@ def test_an_unreachable_or_malformed_network_port_is_one_line_exit_2(plan_file, 
     code, _, err = run("wind", plan_file, "--machine", "grbl-ring", "--port", url.format(free=free_port()), "--yes")
     one_error_line(code, err, words)
     assert "resume with" not in err
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda d: (d / "notes.txt").write_text("x\n") and d / "notes.txt", "is a regular file, not a serial device"),
+    (lambda d: (d / "folder").mkdir() or d / "folder", "is a folder, not a serial device"),
+    (lambda d: os.mkfifo(d / "fifo") or d / "fifo", "is a FIFO, not a serial device"),
+    (lambda d: "/dev/null", "is not a serial device (it takes no serial settings)"),
+])
+@pytest.mark.parametrize("command", ["wind", "machines check"])
+def test_a_port_that_is_not_a_serial_device_is_bad_input(tmp_path, plan_file, make, words, command):
+    port = str(make(tmp_path))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    args = ["wind", plan_file, "--machine", "grbl-ring", "--yes"] if command == "wind" else \
+        ["machines", "check", "grbl-ring"]
+    code, _, err = run(*args, "--port", port)
+    one_error_line(code, err, words)
+    assert "expected a serial device (e.g. /dev/ttyUSB0, COM3) or a URL" in err
+    assert {name: (tmp_path / name).read_bytes() for name in before} == before
+
+
+def test_stringbot_links_imports_where_fcntl_and_termios_do_not_exist():
+    """Windows has no fcntl, termios, tty or pty: every module of stringbot.links (and the CLI) must
+    import without them (pyserial and the SDK, third-party, are loaded first as installed here)."""
+    code = r'''
+import importlib, pkgutil, sys
+import click, dynamixel_sdk, serial, serial.tools.list_ports
+POSIX = ("fcntl", "termios", "tty", "pty")
+class NotHere:
+    def find_spec(self, name, path=None, target=None):
+        if name in POSIX:
+            raise ImportError(f"No module named {name!r}")
+for name in POSIX:
+    sys.modules.pop(name, None)
+sys.meta_path.insert(0, NotHere())
+import stringbot.links
+for info in pkgutil.iter_modules(stringbot.links.__path__):
+    importlib.import_module("stringbot.links." + info.name)
+import stringbot.cli, stringbot.winding, firmware_protocol.pty
+print("imported", ", ".join(sorted(m for m in sys.modules if m.startswith("stringbot.links."))))
+'''
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert "stringbot.links.ports" in p.stdout and "stringbot.links.dynamixel_bus" in p.stdout

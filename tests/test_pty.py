@@ -191,3 +191,71 @@ def test_simulate_removes_its_symlink_on_sigterm(tmp_path):
     assert proc.returncode == 128 + signal.SIGTERM, err
     assert "Traceback" not in err
     assert not os.path.lexists(path)
+
+
+def _wind_through(tmp_path, sim, name):
+    """Wind a small plan through ``sim``'s pty in a new process; the simulator's record must equal it."""
+    import json
+    import subprocess
+    import sys
+
+    from stringbot.planner import write_plan
+    from test_wind_sim import small_plan
+
+    plan = small_plan(n=12, seed=7)
+    write_plan(plan, tmp_path / f"{name}.json")
+    p = subprocess.run([sys.executable, "-c", "from stringbot.cli import main; main()", "wind",
+                        str(tmp_path / f"{name}.json"), "--machine", "grbl-ring", "--port", str(sim.pty), "--yes"],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    sim.stop()
+    rec = json.loads(sim.record.read_text())
+    assert [w["pin"] for w in rec["wraps"]] == plan.sequence and rec["collisions"] == []
+
+
+def test_a_second_simulator_on_a_live_path_is_refused_and_the_first_keeps_serving(tmp_path):
+    from test_wind_pty import Simulator
+
+    first = Simulator(tmp_path, "grbl-ring")
+    try:
+        first.wait_port()
+        pty, operator, lock = str(first.pty), str(first.pty) + ".operator", str(first.pty) + ".lock"
+        target = os.readlink(pty)
+        proc = run_cli("simulate", "--machine", "grbl-ring", "--pty", pty, "--record", str(tmp_path / "rec2.json"))
+        out, err = proc.communicate(timeout=30)
+        assert proc.returncode == 2, err
+        lines = [x for x in err.splitlines() if x.strip()]
+        assert len(lines) == 1 and "Traceback" not in err, err
+        assert lines[0].startswith("stringbot: error: --pty:") and "in use by a running simulator" in lines[0]
+        assert f"process {first.proc.pid}" in lines[0]
+        assert first.proc.poll() is None                              # still running ...
+        assert os.readlink(pty) == target and os.path.exists(operator)   # ... and reachable at its path
+        assert open(lock).read().strip() == str(first.proc.pid)
+        assert not (tmp_path / "rec2.json").exists()
+        _wind_through(tmp_path, first, "plan")                         # the first one winds it exactly
+    finally:
+        first.stop()
+    assert not any(os.path.lexists(p) for p in (pty, operator, lock))    # it cleaned up after itself
+
+
+def test_the_path_of_a_killed_simulator_is_taken_over(tmp_path):
+    from test_wind_pty import Simulator
+
+    dead = Simulator(tmp_path, "grbl-ring")
+    dead.proc.kill()
+    dead.proc.wait()
+    pty = str(dead.pty)
+    assert os.path.lexists(pty) and os.path.exists(pty + ".lock")      # its leftovers, no holder
+    dead.proc.stdout.close()
+    dead.proc.stderr.close()
+    alive = Simulator(tmp_path, "grbl-ring")
+    try:
+        deadline = time.monotonic() + 30          # the dead one's pts number may have been reused meanwhile
+        while open(pty + ".lock").read().strip() != str(alive.proc.pid) and time.monotonic() < deadline:
+            assert alive.proc.poll() is None, alive.proc.stderr.read()
+            time.sleep(0.05)
+        assert open(pty + ".lock").read().strip() == str(alive.proc.pid)
+        alive.wait_port()
+        _wind_through(tmp_path, alive, "plan")
+    finally:
+        alive.stop()
