@@ -1,8 +1,11 @@
-"""Every bad input named by issues 11 (files, ports), 12 (colour) and 14 (settings check), run as a
-user runs it (a new ``stringbot`` process in a scratch folder): its exit code and its one line.
+"""Every bad input named by issues 11 (files, ports), 12 (colour), 14 (settings check) and 24 (files
+stringbot did not write, pictures it cannot plan, ports that are not serial devices, a second
+simulator), run as a user runs it (a new ``stringbot`` process in a scratch folder): its exit code
+and its one line.
 
 Prints a Markdown table (command, exit, the line on standard error) and checks each case: exit 2
-(``machines check`` on a mis-set machine: 1), one line, no traceback, nothing on disk changed.
+(``machines check`` on a mis-set machine: 1; a warning: 0), one line, no traceback, nothing on disk
+changed.
 
     python benchmarks/bad_inputs.py
 """
@@ -10,6 +13,7 @@ Prints a Markdown table (command, exit, the line on standard error) and checks e
 import hashlib
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -41,7 +45,25 @@ def setup(work):
     (work / "afile").write_text("x\n")
     text = (ROOT / "machines" / "grbl-ring.toml").read_text().replace("out_mm = 12.0", "out_mm = 0.5")
     (work / "short-stroke.toml").write_text(text)
-    return s
+    # issue 24: pictures of the user's own, G-code stringbot wrote, pictures it cannot plan well
+    import numpy as np
+    from PIL import Image
+    rng = np.random.default_rng(24)
+    Image.fromarray(rng.integers(0, 255, (300, 400, 3), dtype=np.uint8)).save(work / "rk.jpg")
+    Image.fromarray(rng.integers(0, 255, (300, 400, 3), dtype=np.uint8)).save(work / "rk.png")   # unrelated
+    Image.fromarray(rng.integers(0, 255, (300, 400, 3), dtype=np.uint8)).save(work / "photo.jpg")
+    subprocess.run(STRINGBOT + ["gcode", "ring.json", "--machine", "grbl-ring", "-o", "keep.gcode"], cwd=work,
+                   check=True, capture_output=True)
+    Image.fromarray(np.zeros((300, 300), np.uint8)).save(work / "black.png")
+    night = np.full((300, 300), 10, np.uint8)
+    night[120:180, 120:180] = 120                       # a lit window in the night
+    Image.fromarray(night).save(work / "night.png")
+    Image.fromarray(rng.integers(0, 255, (20, 2000), dtype=np.uint8)).save(work / "strip.png")
+    (work / "adir").mkdir()
+    sim = subprocess.Popen(STRINGBOT + ["simulate", "--pty", "live.pty"], cwd=work, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    sim.stdout.readline()                               # "simulating grbl-ring on live.pty ..."
+    return s, sim
 
 
 CASES = [
@@ -80,13 +102,36 @@ CASES = [
     "machines check no-such-machine",
     "machines check grbl-ring --port /dev/ttyNOPE",
     "machines check grbl-ring --port sim://?machine=grbl-ring&set=$100=40",
+    # issue 24: files stringbot did not write
+    "plan rk.jpg -o rk.json --pins 60 --lines 50 --size 101",
+    "render plan.json -o camera.png",
+    "render plan.json -o photo.jpg",
+    "plan camera.png -o out.json --preview photo.jpg --pins 60 --lines 50 --size 101",
+    "plan camera.png -o ring.json.journal --pins 60 --lines 50 --size 101",
+    "plan camera.png -o keep.gcode --pins 60 --lines 50 --size 101",
+    "plan camera.png -o photo.jpg --preview out.png --pins 60 --lines 50 --size 101",
+    "wind ring.json --machine grbl-ring --yes --record rk.png",
+    # issue 24: pictures the planner cannot paint in black on white
+    "plan black.png -o b.json",
+    "plan night.png -o n.json",
+    "plan strip.png -o s.json --pins 60 --lines 50 --size 101",
+    # issue 24: ports that are not serial devices, a path a simulator holds
+    "wind ring.json --machine grbl-ring --yes --port afile",
+    "wind ring.json --machine grbl-ring --yes --port adir",
+    "wind ring.json --machine grbl-ring --yes --port /dev/null",
+    "wind ring.json --machine grbl-ring --yes --port fifo.txt",
+    "machines check grbl-ring --port afile",
+    "simulate --pty live.pty",
 ]
+#: Cases that go on with a warning (exit 0, one ``stringbot: warning:`` line).
+WARNINGS = ("plan strip.png",)
 
 
-def digest(work):
+def digest(work, *, journals=True):
+    """sha256 of every regular file (journals too unless ``journals`` is false: a refused wind notes it)."""
     out = {}
     for p in sorted(work.rglob("*")):
-        if p.is_file() and not p.is_symlink() and p.suffix != ".journal":
+        if p.is_file() and not p.is_symlink() and (journals or p.suffix != ".journal"):
             out[p.name] = hashlib.sha256(p.read_bytes()).hexdigest()
     return out
 
@@ -99,25 +144,35 @@ def run(work, argv):
 def main():
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        keep = setup(work)
+        keep, sim = setup(work)
         print("| command | exit | what it says |")
         print("|---|---|---|")
         bad = 0
-        for case in CASES:
-            argv = case.split(" ")
-            before = digest(work)
-            p = run(work, argv)
-            lines = [x for x in p.stderr.splitlines() if x.strip()]
-            want = 1 if case.startswith("machines check grbl-ring --port sim://") else 2
-            changed = [k for k, v in before.items() if digest(work).get(k) != v]
-            ok = p.returncode == want and len(lines) == 1 and "Traceback" not in p.stderr and not changed
-            bad += not ok
-            line = lines[-1] if lines else "(nothing)"
-            flag = "" if ok else " **(!)**"
-            print(f"| `stringbot {case}` | {p.returncode}{flag} | {line.replace('|', '/')} |")
-        keep.close()
-        print(f"\n{len(CASES)} cases, {bad} not as expected (exit 2 -- 1 for a mis-set machine --, "
-              "one line, no traceback, nothing on disk changed)")
+        try:
+            for case in CASES:
+                argv = case.split(" ")
+                journals = argv[0] != "wind"
+                before = digest(work, journals=journals)
+                p = run(work, argv)
+                lines = [x for x in p.stderr.splitlines() if x.strip()]
+                warning = case.startswith(WARNINGS)
+                want = 1 if case.startswith("machines check grbl-ring --port sim://") else 0 if warning else 2
+                changed = [k for k, v in before.items() if digest(work, journals=journals).get(k) != v]
+                ok = p.returncode == want and len(lines) == 1 and "Traceback" not in p.stderr and not changed \
+                    and lines[0].startswith("stringbot: warning:" if warning else "stringbot: error:")
+                bad += not ok
+                line = lines[-1] if lines else "(nothing)"
+                flag = "" if ok else " **(!)**"
+                print(f"| `stringbot {case}` | {p.returncode}{flag} | {line.replace('|', '/')} |")
+            alive = sim.poll() is None          # the simulator the last case tried to take over
+            bad += not alive
+            print(f"\n{len(CASES)} cases, {bad} not as expected (exit 2 -- 1 for a mis-set machine, 0 with "
+                  "one warning line for a plan that goes on --, one line, no traceback, nothing on disk changed; "
+                  f"the simulator on live.pty {'still serving' if alive else 'GONE'} at the end)")
+        finally:
+            keep.close()
+            sim.send_signal(signal.SIGINT)
+            sim.communicate(timeout=30)
         return 1 if bad else 0
 
 

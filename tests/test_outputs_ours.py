@@ -169,16 +169,21 @@ def test_an_empty_file_holds_nothing_to_lose(folder):
 # ---- item 6: pictures the planner cannot paint in black on white ------------------------------
 
 
-@pytest.mark.parametrize("gray", [0, 12])
-def test_a_too_dark_picture_is_refused_like_a_blank_one(tmp_path, gray):
-    g = np.full((120, 120), gray, np.uint8)
-    g[50:70, 50:70] = 90                                        # a few lighter pixels: still too dark
+@pytest.mark.parametrize("gray, moon", [(0, 18), (12, 12)])   # mean gray in the frame 23, 22
+def test_a_too_dark_picture_is_refused_like_a_blank_one_and_the_advice_plans_it(tmp_path, gray, moon):
+    y, x = np.mgrid[:120, :120]
+    g = np.where((x - 60) ** 2 + (y - 60) ** 2 < moon ** 2, 255, gray).astype(np.uint8)   # a moon at night
     Image.fromarray(g).save(tmp_path / "night.png")
     err = refused(tmp_path, ["plan", "night.png", "-o", "n.json"], "too dark to plan in black thread on white")
     assert "--colors white --background black" in err
     assert not (tmp_path / "n.json").exists() and not (tmp_path / "n.png").exists()
     for method in ("fitness", "greedy"):
         refused(tmp_path, ["plan", "night.png", "-o", "n.json", *SMALL, "--method", method], "too dark")
+    code, _, err = run("plan", "night.png", "-o", "n.json", *SMALL, "--colors", "white", "--background", "black",
+                       cwd=tmp_path)
+    assert code == 0, err                                       # the advice: light thread on a dark board
+    plan = read_plan(tmp_path / "n.json")
+    assert plan.background == "#000000" and len(plan.sequence) > 10
 
 
 def test_a_dark_but_plannable_picture_is_planned(tmp_path):
