@@ -49,7 +49,7 @@ from .errors import BadInput
 
 __all__ = ["write_atomic", "write_all_atomic", "check_output_path", "check_not_same_file", "problem",
            "output_error", "default_mode", "STDOUT", "check_ours", "written_by_stringbot", "describe", "mark_png",
-           "check_suffix", "GCODE_HEAD"]
+           "check_suffix", "sha256_file", "GCODE_HEAD"]
 
 STDOUT = "-"
 
@@ -229,7 +229,8 @@ def _is_plan(path):
     return doc is not None and doc.get("format") == "stringbot-plan"
 
 
-def _sha256(path):
+def sha256_file(path):
+    """The sha256 of the file at ``path``, hex (read in 1 MB blocks)."""
     import hashlib
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -249,7 +250,7 @@ def _old_preview(path, head):
         return False
     source = doc.get("source") if isinstance(doc.get("source"), dict) else {}
     try:
-        return source.get("sha256") != _sha256(path)
+        return source.get("sha256") != sha256_file(path)
     except OSError:
         return False
 

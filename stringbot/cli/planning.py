@@ -290,7 +290,7 @@ def _refuse_the_source(output, plan_path, plan):
             check_not_same_file(output, path, what="drawing", source_what="plan's source picture")
     sha = plan.source.get("sha256")
     if sha and os.path.isfile(output):
-        from ..planner.image import sha256_file
+        from .._files import sha256_file
 
         try:
             same = sha256_file(output) == sha

@@ -19,17 +19,18 @@ The planner only ever sees a ``size x size`` float array of gray levels in
    of Lu, Xu and Jia (2012), or by plain luminance.
 """
 
-import hashlib
 import logging
 from pathlib import Path
 
 import numpy as np
 
+from .._files import sha256_file  # noqa: F401  (the picture's identity in the plan; imported from here too)
 from ..errors import BadInput
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "default_crop_share", "fit_crop", "parse_crop", "MAX_PIXELS"]
+__all__ = ["Picture", "read_picture", "decolorize", "default_crop", "default_crop_share", "fit_crop", "parse_crop",
+           "MAX_PIXELS"]
 
 MAX_PIXELS = 1_000_000_000      # refuse larger pictures outright
 MAX_DECODED_BYTES = 1_200_000_000  # PIL's decoded image must fit in this
@@ -65,14 +66,6 @@ class Picture:
         self.gray_method = gray_method
         self.weights = weights
         self.rgb = rgb
-
-
-def sha256_file(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def default_crop(width, height):
