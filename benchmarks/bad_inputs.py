@@ -111,6 +111,7 @@ CASES = [
     "plan camera.png -o keep.gcode --pins 60 --lines 50 --size 101",
     "plan camera.png -o photo.jpg --preview out.png --pins 60 --lines 50 --size 101",
     "wind ring.json --machine grbl-ring --yes --record rk.png",
+    "simulate --pty new.pty --record photo.jpg",
     # issue 24: pictures the planner cannot paint in black on white
     "plan black.png -o b.json",
     "plan night.png -o n.json",

@@ -158,6 +158,7 @@ PNG_SOFTWARE = (b"Software", b"stringbot")
 _KIND_NAMES = {"plan": "a plan stringbot wrote", "png": "a picture stringbot drew",
                "gcode": "G-code stringbot wrote", "record": "a simulated world's record"}
 _HEAD = 1 << 16          # a PNG's marker sits right after its header; a journal's header is its first line
+_MAX_JSON = 1 << 28      # a larger file is no plan or record of ours (a 2000-pin plan of 100000 lines: ~2 MB)
 
 
 def check_suffix(path, suffixes, *, option="-o"):
@@ -217,6 +218,8 @@ def _read_head(path):
 def _json(path):
     import json
     try:
+        if os.path.getsize(path) > _MAX_JSON:
+            return None
         with open(path, "rb") as f:
             doc = json.load(f)
     except (OSError, ValueError):
