@@ -12,6 +12,7 @@ from stringbot.planner import write_plan
 from stringbot.winding import Job, read_journal, wind_plan
 from stringbot.winding.resume import resume_plan
 
+from planner_helpers import for_machine
 from test_colour_plan import colour_plan
 
 MACHINES = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring", "dynamixel-ring"]
@@ -34,7 +35,7 @@ def check_layers(record, plan):
 
 @pytest.mark.parametrize("name", MACHINES)
 def test_dry_run_of_a_three_colour_plan_winds_every_layer_with_its_thread(tmp_path, capsys, name):
-    plan = colour_plan()
+    plan = for_machine(colour_plan(), name)
     path, record = tmp_path / "c.json", tmp_path / "rec.json"
     write_plan(plan, path)
     with pytest.raises(SystemExit) as info:

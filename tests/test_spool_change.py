@@ -12,7 +12,7 @@ import subprocess
 
 import pytest
 
-from firmware_protocol.machine import load_machine
+from planner_helpers import for_machine
 from stringbot.planner.plan_file import write_plan
 from test_colour_plan import colour_plan
 from test_wind_pty import STRINGBOT, Simulator
@@ -22,9 +22,7 @@ pytestmark = pytest.mark.timeout(300)
 
 def plan_for(tmp_path, machine, n=(6, 5, 4)):
     """A 3-colour plan for ``machine``'s ring and thread, written to ``tmp_path / c.json``."""
-    plan = colour_plan(n=n)
-    m = load_machine(machine)
-    plan.diameter_mm, plan.thread_mm = m["ring.diameter_mm"], m["thread.diameter_mm"]
+    plan = for_machine(colour_plan(n=n), machine)
     path = tmp_path / "c.json"
     write_plan(plan, path)
     return plan, path

@@ -11,7 +11,7 @@ from .progress import fmt_s as _fmt_s
 
 def _resume_command(plan, machine_name, port, journal, *extra):
     import shlex
-    parts = ["stringbot", "wind", plan, "--machine", machine_name]
+    parts = ["stringbot", "wind", plan] + (["--machine", machine_name] if machine_name else [])
     if port:
         parts += ["--port", port]
     if journal:
@@ -21,7 +21,8 @@ def _resume_command(plan, machine_name, port, journal, *extra):
 
 @cli.command()
 @click.argument("plan", type=click.Path(dir_okay=True))
-@click.option("--machine", "machine_name", required=True, help="Machine name (bundled) or machine file path.")
+@click.option("--machine", "machine_name", default=None,
+              help="Machine name (bundled) or machine file path [default: the plan's, from plan --machine].")
 @click.option("--port", default=None, help="Serial port or URL (/dev/ttyUSB0, COM3, socket://h:p, sim://...); "
               "default: the simulated machine.")
 @click.option("--record", default=None, type=click.Path(dir_okay=False),
@@ -48,11 +49,15 @@ def _resume_command(plan, machine_name, port, journal, *extra):
               help="A colour plan's spool changes: ask (type the colour; the default at a terminal), stop "
                    "(exit 3 with what to tie on and the resume command; the default of --yes on a port), "
                    "continue (a machine that changes thread itself; the default of a dry run).")
+@click.option("--force", is_flag=True,
+              help="Wind a plan made for another thread-to-diameter ratio than the machine's (the piece then "
+                   "comes out darker or lighter than its preview).")
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
-         faults, realtime, progress_every, no_check, spool_change):
+         faults, realtime, progress_every, no_check, spool_change, force):
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
-    from ..winding import dry_run_problem, load_job, wind_plan
+    from ..winding import Job, dry_run_problem, wind_plan
     from ..winding import resume as resuming
+    from .plan_machine import check_thread, machine_for
 
     if show_status and port is None and journal is None:
         from ..winding.journal import journal_path_for
@@ -60,8 +65,10 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
         real = journal_path_for(plan)  # the machine's winding, not a dry run, is what --status is for
         if real.exists():
             journal = str(real)
-    job = load_job(plan, machine_name, port=port, record=record, journal=journal,
-                   realtime=realtime, faults=faults)
+    job = Job(plan, machine_for(plan, machine_name), port=port, record=record, journal=journal,
+              realtime=realtime, faults=faults)
+    if not (force or show_status):      # --status only reads the journal
+        check_thread(job.plan, plan, job.machine)
     if show_status:
         for line in resuming.status_lines(job):
             click.echo(line)
@@ -74,7 +81,7 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
                        "give one of them, not both")
     from .colour import simulated_hands, spool_change_mode
     spool_change = spool_change_mode(spool_change, yes=yes, dry_run=job.dry_run)
-    again = _resume_command(plan, machine_name, port, journal)
+    again = _resume_command(plan, machine_name, port, journal, *(["--force"] if force else []))
     ask = _Asking()
     threads = dict(spool_change=spool_change, ask_thread=None if yes else ask.thread, hands=simulated_hands(job))
     if not job.plan.is_mono and yes and not resume and from_step is None:
@@ -99,11 +106,12 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
                                check=not no_check, **threads)
     except SettingsDisagree as exc:     # nothing moved: no resume to offer
         from .checking import refusal_lines
-        for line in refusal_lines(exc, machine_name, port):
+        for line in refusal_lines(exc, machine_name or job.plan.parameters.get("machine"), port):
             click.echo(f"stringbot: error: {line}", err=True)
         sys.exit(1)
     except SpoolChange as exc:          # the machine holds with the head in, the journal has the stop
-        extra = [*(["--yes"] if yes else []), *(["--spool-change", spool_change] if spool_change else [])]
+        extra = [*(["--yes"] if yes else []), *(["--spool-change", spool_change] if spool_change else []),
+                 *(["--force"] if force else [])]
         raise SpoolChange(f"{exc}; then resume with: {_resume_command(plan, machine_name, port, journal, *extra)}",
                           layer=exc.layer) from None
     except (Interrupted, MachineFailure) as exc:
