@@ -74,6 +74,7 @@ def test_yes_on_a_port_stops_at_each_spool_change_and_the_resume_goes_on_with_th
             assert f"({plan.colors[k]}) thread on at pin {pin}" in last
             got, rec = seen(sim)
             assert got == want[:start] and rec["collisions"] == []     # every layer before, nothing more
+            assert rec["head_side"] == "in"
             stop = [json.loads(x) for x in journal.read_text().splitlines()][-1]
             assert (stop["kind"], stop["reason"], stop["layer"], stop["next_step"]) == \
                 ("stop", "spool change", k, start)
@@ -181,3 +182,25 @@ def test_a_resume_at_a_terminal_after_the_stop_asks_for_the_thread(tmp_path):
     got, _ = seen(sim)
     b = plan.layer_starts[2]
     assert got[plan.layer_starts[1]:] == [(pin, plan.colors[1]) for pin in plan.sequence[plan.layer_starts[1]:b]]
+
+
+def test_stop_at_a_terminal_stops_at_each_change_and_its_resume_goes_on_to_the_next(tmp_path):
+    """``--spool-change stop`` without ``--yes``: the resume it prints (no ``--yes``) does not stop again at the
+    change it was run for."""
+    plan, path = plan_for(tmp_path, "grbl-ring", n=(4, 3, 3))
+    sim = Simulator(tmp_path, "grbl-ring")
+    try:
+        tie_on(sim, plan.colors[0], plan.sequence[0])
+        p = stringbot(["wind", path, "--machine", "grbl-ring", "--port", sim.pty, "--journal", tmp_path / "j",
+                       "--spool-change", "stop"], input="")
+        assert p.returncode == 3, p.stderr
+        again = resume_command(p.stderr)
+        assert "--yes" not in again and again[-2:] == ["--spool-change", "stop"]
+        tie_on(sim, plan.colors[1], plan.sequence[plan.layer_starts[1]])
+        p = stringbot(again, input="y\n")                   # "Resume at pin ...?"
+        assert p.returncode == 3, p.stderr
+        assert f"spool change before step {plan.layer_starts[2] + 1} (layer 3 of 3)" in p.stderr
+    finally:
+        sim.stop()
+    got, _ = seen(sim)
+    assert got == [(pin, lay.color) for lay in plan.layers[:2] for pin in lay.sequence]

@@ -78,7 +78,7 @@ class Threads:
         A simulated operator's hands: tie the thread on in a simulated world.
     ready : int or None
         A layer whose thread the operator already said is on (the resume after a ``"stop"``
-        there): journaled without a question.
+        there): ``"stop"`` does not stop for it again (``"ask"`` still asks).
     """
 
     def __init__(self, job, journal, *, tied=None, mode="ask", ask=None, hands=None, ready=None):
@@ -130,13 +130,11 @@ class Threads:
         ready, self.ready = self.ready, None    # the operator's word (running the resume): this once
         if layer == self.tied:
             return
-        if layer == ready:
-            pass
-        elif self.mode == "ask":
+        if self.mode == "ask":
             if not self.ask(self.question(layer, step), self.colors[layer]):
                 raise Interrupted(f"stopped by the operator at the spool change before step {step + 1} "
                                   f"(layer {layer + 1}); nothing was moved since; resume with --resume")
-        elif self.mode == "stop" and self.tied is not None:
+        elif self.mode == "stop" and self.tied is not None and layer != ready:
             raise SpoolChange(f"spool change before step {step + 1} (layer {layer + 1} of {len(self.colors)}): "
                               f"the machine holds with the head in; {self.instructions(layer, step)}",
                               layer=layer)

@@ -133,7 +133,7 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
         winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
         if not job.plan.is_mono:    # the journal says whose thread is on: only a new layer's is asked for
             from .layers import spool_stop_layer, threads_for, tied_layer
-            ready = spool_stop_layer(_live_stop(state)) if from_step is None and confirm is None else None
+            ready = spool_stop_layer(_live_stop(state)) if from_step is None else None
             winder.threads = threads_for(job, journal, tied=tied_layer(state), ready=ready, confirm=confirm,
                                          spool_change=spool_change, ask_thread=ask_thread, hands=hands)
         winder.state = winder.state.CONNECTING
