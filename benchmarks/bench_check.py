@@ -33,7 +33,7 @@ def cli_runs(plan, machine, runs, extra):
     times = []
     for _ in range(runs):
         t0 = time.perf_counter()
-        done = subprocess.run(STRINGBOT + ["wind", str(plan), "--machine", machine, "--yes"] + extra,
+        done = subprocess.run(STRINGBOT + ["wind", str(plan), "--machine", machine, "--yes", "--force"] + extra,
                               capture_output=True, text=True)
         times.append(time.perf_counter() - t0)
         if done.returncode != 0:

@@ -119,7 +119,7 @@ def kills(plan_path, plan_seq, name, n_kills, seed, workdir):
         extra = []
         while True:
             runs += 1
-            cmd = STRINGBOT + ["wind", str(plan_path), "--machine", name, "--port", str(pty), "--yes",
+            cmd = STRINGBOT + ["wind", str(plan_path), "--machine", name, "--port", str(pty), "--yes", "--force",
                                "--journal", str(journal)] + extra
             proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             if killed < len(targets):

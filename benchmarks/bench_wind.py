@@ -91,7 +91,7 @@ def pty_run(plan_path, plan, name, workdir, record=True):
             time.sleep(0.05)
         t = time.monotonic()
         done = subprocess.run(STRINGBOT + ["wind", str(plan_path), "--machine", name, "--port", str(pty),
-                                           "--yes", "--journal", str(Path(workdir) / f"pty-{name}-{record}.journal")],
+                                           "--yes", "--force", "--journal", str(Path(workdir) / f"pty-{name}-{record}.journal")],
                               capture_output=True, text=True)
         wall = time.monotonic() - t
     finally:

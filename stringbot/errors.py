@@ -4,7 +4,7 @@ Every layer raises these (or a subclass); the ``stringbot.cli`` package prints t
 one line and exits with the code named here.  Any layer may import this module.
 """
 
-__all__ = ["BadInput", "MachineFailure", "Interrupted"]
+__all__ = ["BadInput", "MachineFailure", "Interrupted", "SpoolChange"]
 
 
 class BadInput(ValueError):
@@ -46,3 +46,26 @@ class Interrupted(RuntimeError):
     """The user stopped the job (Ctrl-C); the machine is stopped.  Exit 130."""
 
     exit_code = 130
+
+
+class SpoolChange(Interrupted):
+    """A colour plan's winding stopped at a spool change for a person to make it (``--yes`` on a
+    port: nobody to ask).  Exit 3.
+
+    The machine has executed every step before and holds with the head IN; the journal has the
+    stop.  The message says which thread to cut and which to tie on at which pin; the command
+    line adds the resume command.
+
+    Parameters
+    ----------
+    message : str
+    layer : int
+        The layer (from 0) whose thread is to be tied on.
+    """
+
+    exit_code = 3
+    reason = "spool change"
+
+    def __init__(self, message, *, layer):
+        super().__init__(message)
+        self.layer = layer

@@ -10,3 +10,13 @@ def picture(gray):
     n = gray.shape[0]
     return Picture(np.asarray(gray, dtype=np.float32), {"cx": n / 2, "cy": n / 2, "r": n / 2},
                    {"path": "synthetic", "sha256": "0" * 64, "width": n, "height": n}, "gray")
+
+
+def for_machine(plan, machine):
+    """``plan`` as ``stringbot plan --machine`` makes it: the machine's ring diameter and thread (a plan
+    for another thread-to-diameter ratio is refused by wind, gcode, pins and estimate).  Returns it."""
+    from firmware_protocol.machine import load_machine
+
+    m = load_machine(machine)
+    plan.diameter_mm, plan.thread_mm = m["ring.diameter_mm"], m["thread.diameter_mm"]
+    return plan

@@ -8,6 +8,7 @@ from firmware_protocol.machine import bundled_dir, load_machine
 from gcode_replay import replay
 from stringbot.cli import main
 from stringbot.planner import write_plan
+from planner_helpers import for_machine
 from test_gcode_replay import make_plan, random_sequence
 
 
@@ -52,6 +53,8 @@ def test_machines_show_takes_a_users_file(capsys, tmp_path):
 
 @pytest.mark.parametrize("name", ["grbl-ring", "grblhal-ring", "marlin-ring"])
 def test_gcode_writes_a_job_that_replays_exactly(capsys, tmp_path, plan_path, name):
+    from stringbot.planner import read_plan
+    write_plan(for_machine(read_plan(plan_path), name), plan_path)
     out_path = tmp_path / "job.gcode"
     code, out, err = run(capsys, "gcode", str(plan_path), "--machine", name, "-o", str(out_path))
     assert code == 0, err

@@ -12,9 +12,16 @@ from stringbot.planner import write_plan
 from stringbot.winding import Job, read_journal, wind_plan
 from stringbot.winding.resume import resume_plan
 
+from planner_helpers import for_machine
 from test_colour_plan import colour_plan
 
 MACHINES = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring", "dynamixel-ring"]
+
+
+def hands_at(url):
+    """The operator's hands at an in-process simulated machine: each thread tied on when asked."""
+    from firmware_protocol.urlhandler import protocol_sim
+    return lambda color, pin: protocol_sim.tie_on(url, color, pin)
 
 
 def check_layers(record, plan):
@@ -28,7 +35,7 @@ def check_layers(record, plan):
 
 @pytest.mark.parametrize("name", MACHINES)
 def test_dry_run_of_a_three_colour_plan_winds_every_layer_with_its_thread(tmp_path, capsys, name):
-    plan = colour_plan()
+    plan = for_machine(colour_plan(), name)
     path, record = tmp_path / "c.json", tmp_path / "rec.json"
     write_plan(plan, path)
     with pytest.raises(SystemExit) as info:
@@ -51,7 +58,7 @@ def test_the_operator_is_asked_for_each_thread_at_its_pin(tmp_path):
     job = Job(path, load_machine("grbl-ring"), port=sim_url("grbl-ring", record=record),
               journal=tmp_path / "c.journal")
     asked = []
-    wind_plan(job, confirm=lambda q: asked.append(q) or True)
+    wind_plan(job, confirm=lambda q: asked.append(q) or True, hands=hands_at(job.url))
     assert len(asked) == 3
     for k, (q, lay) in enumerate(zip(asked, plan.layers)):
         assert lay.color in q and f"at pin {lay.sequence[0]}" in q and f"layer {k + 1} of 3" in q
@@ -61,13 +68,15 @@ def test_the_operator_is_asked_for_each_thread_at_its_pin(tmp_path):
 
 def test_a_dry_run_that_winds_a_layer_with_the_wrong_thread_fails(tmp_path, capsys, monkeypatch):
     """The record's colours are checked: an operator who ties on the wrong thread is caught."""
-    from stringbot.links import operator
+    from stringbot.cli import colour
     plan = colour_plan()
     path, record = tmp_path / "c.json", tmp_path / "rec.json"
     write_plan(plan, path)
-    real = operator.tie_on
-    monkeypatch.setattr("stringbot.winding.layers.tie_on",
-                        lambda url, color, pin=None: real(url, "#00ff00" if color == "#c8102e" else color, pin))
+
+    def clumsy(job):
+        hands = hands_at(str(job.url))
+        return lambda color, pin: hands("#00ff00" if color == "#c8102e" else color, pin)
+    monkeypatch.setattr(colour, "simulated_hands", clumsy)
     with pytest.raises(SystemExit) as info:
         main(["wind", str(path), "--machine", "grbl-ring", "--yes", "--record", str(record)])
     _, err = capsys.readouterr()
@@ -100,12 +109,12 @@ def test_resume_inside_layer_2_never_asks_for_layer_1(tmp_path):
         return True
 
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=confirm, link_options={"response_timeout": 1.0})
+        wind_plan(job, confirm=confirm, link_options={"response_timeout": 1.0}, hands=hands_at(job.url))
     state = read_journal(job.journal_path)
     assert plan.layer_starts[1] < state.next_step < plan.layer_starts[2]     # stopped inside layer 2
     assert [r["layer"] for r in state.layers] == [0, 1]
     before = len(asked)
-    resume_plan(job, confirm=confirm, link_options={"response_timeout": 1.0})
+    resume_plan(job, confirm=confirm, link_options={"response_timeout": 1.0}, hands=hands_at(job.url))
     again = asked[before:]
     assert not any(plan.colors[0] in q for q in again)                  # layer 1's thread: never again
     assert not any(asks_for(plan.colors[1], q) for q in again)          # layer 2's is on the machine
@@ -119,11 +128,11 @@ def test_operator_declining_at_a_spool_change_then_resume_asks_for_that_thread(t
     job, plan, record = make_job(tmp_path, None)
     answers = iter([True, False])            # layer 1 yes; at the change to layer 2: not yet
     with pytest.raises(Interrupted, match="spool change before step 7"):
-        wind_plan(job, confirm=lambda q: next(answers))
+        wind_plan(job, confirm=lambda q: next(answers), hands=hands_at(job.url))
     state = read_journal(job.journal_path)
     assert state.next_step == plan.layer_starts[1] and [r["layer"] for r in state.layers] == [0]
     asked = []
-    resume_plan(job, confirm=lambda q: asked.append(q) or True)
+    resume_plan(job, confirm=lambda q: asked.append(q) or True, hands=hands_at(job.url))
     assert sum(asks_for(plan.colors[1], q) and "Spool change" in q for q in asked) == 1
     assert not any(asks_for(plan.colors[0], q) for q in asked)
     check_layers(record, plan)

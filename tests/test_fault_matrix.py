@@ -18,6 +18,7 @@ import pytest
 
 from stringbot.planner import write_plan
 
+from planner_helpers import for_machine
 from test_wind_sim import small_plan
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -26,23 +27,29 @@ import bench_fault_matrix as fm  # noqa: E402
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    """A 10-step plan and, per machine, its fault points from a fault-free probe."""
+    """A 10-step plan (made for each machine's thread) and, per machine, its fault points from a
+    fault-free probe."""
     work = tmp_path_factory.mktemp("matrix")
     plan = small_plan(n=10, seed=31)
-    write_plan(plan, work / "plan.json")
     cache = {}
+
+    def plan_for(machine):
+        path = work / f"plan-{Path(machine).stem}.json"
+        if not path.exists():
+            write_plan(for_machine(plan, machine), path)
+        return path
 
     def points(machine, wanted):
         if machine not in cache:
-            cache[machine] = fm.line_table(work / "plan.json", machine)
+            cache[machine] = fm.line_table(plan_for(machine), machine)
         import random
         return fm.fault_points(cache[machine], machine, random.Random(1), wanted)
-    return work, plan, points
+    return work, plan, points, plan_for
 
 
 def _run(tiny, case):
-    work, plan, _ = tiny
-    return fm.run_case(case, work / "plan.json", plan.sequence, work, timeout=60.0)
+    work, plan, _, plan_for = tiny
+    return fm.run_case(case, plan_for(case.machine), plan.sequence, work, timeout=60.0)
 
 
 def _explain(r):

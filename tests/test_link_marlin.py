@@ -6,6 +6,7 @@ from stringbot.errors import MachineFailure
 from stringbot.links import MarlinLink
 from stringbot.links.marlin import numbered
 
+from planner_helpers import for_machine
 from test_link_scripted import ScriptedPort
 
 M115 = (b"FIRMWARE_NAME:Marlin 2.1.2 (Nov 1 2026) SOURCE_CODE_URL:github.com/MarlinFirmware/Marlin "
@@ -153,7 +154,7 @@ def test_a_marlin_that_stops_sending_keepalives_is_declared_unresponsive(tmp_pat
     from stringbot.winding import read_journal
     from test_gcode_replay import make_plan
 
-    write_plan(make_plan([0, 150, 1, 151]), tmp_path / "plan.json")
+    write_plan(for_machine(make_plan([0, 150, 1, 151]), "marlin-ring"), tmp_path / "plan.json")
     pty = tmp_path / "pty"
     cli = [sys.executable, "-c", "from stringbot.cli import main; main()"]
     sim = subprocess.Popen(cli + ["simulate", "--machine", "marlin-ring", "--pty", str(pty), "--set", "M203 A30",

@@ -7,6 +7,7 @@ import pytest
 from stringbot.planner import write_plan
 from stringbot.winding import read_journal
 
+from planner_helpers import for_machine
 from test_wind_cli import error_lines, run
 from test_wind_pty import Simulator
 from test_wind_sim import small_plan
@@ -42,7 +43,7 @@ CASES = [
 @pytest.mark.parametrize("machine, setting, named, fix", CASES, ids=[c[0] for c in CASES])
 def test_mis_set_machine_is_named_refused_then_fixed_and_winds_exactly(tmp_path, capsys, simulator,
                                                                        machine, setting, named, fix):
-    plan = small_plan(n=8, seed=5)
+    plan = for_machine(small_plan(n=8, seed=5), machine)
     write_plan(plan, tmp_path / "plan.json")
     journal = tmp_path / "plan.journal"
     sim = simulator(machine, setting)
@@ -101,8 +102,8 @@ def test_without_the_check_the_mis_set_machine_winds_wrong(tmp_path, capsys, sim
 
 def test_a_dry_run_checks_too_and_agrees(tmp_path, capsys, caplog):
     import logging
-    write_plan(small_plan(n=6, seed=5), tmp_path / "plan.json")
     for machine, rows in (("grbl-ring", 9), ("marlin-ring", 8)):
+        write_plan(for_machine(small_plan(n=6, seed=5), machine), tmp_path / "plan.json")
         caplog.clear()
         with caplog.at_level(logging.INFO, logger="stringbot.links.settings_check"):
             code, out, err = run(["wind", str(tmp_path / "plan.json"), "--machine", machine, "--yes"], capsys)

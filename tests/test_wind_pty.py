@@ -15,6 +15,7 @@ import pytest
 
 from stringbot.planner import write_plan
 
+from planner_helpers import for_machine
 from test_wind_sim import small_plan
 
 STRINGBOT = [sys.executable, "-c", "import sys; from stringbot.cli import main; main(sys.argv[1:])"]
@@ -83,7 +84,7 @@ def wind(plan_path, machine, port, journal, *extra, timeout=120):
 
 @pytest.mark.parametrize("machine", ["grbl-ring", "grblhal-ring", "marlin-ring"])
 def test_wind_through_a_pty(tmp_path, sim_factory, machine):
-    plan = small_plan(n=14, seed=11)
+    plan = for_machine(small_plan(n=14, seed=11), machine)
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory(machine)
     done = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
@@ -96,7 +97,7 @@ def test_wind_through_a_pty(tmp_path, sim_factory, machine):
 @pytest.mark.parametrize("machine, faults", [("grbl-ring", "power@19"), ("marlin-ring", "disconnect@23"),
                                              ("grblhal-ring", "reset@26")])
 def test_fault_through_a_pty_then_resume(tmp_path, sim_factory, machine, faults):
-    plan = small_plan(n=10, seed=12)
+    plan = for_machine(small_plan(n=10, seed=12), machine)
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory(machine, faults)
     first = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
@@ -156,7 +157,7 @@ def test_host_killed_with_sigkill_then_resume(tmp_path, sim_factory):
 @pytest.mark.parametrize("machine", ["grbl-ring", "marlin-ring"])
 def test_ctrl_c_on_a_realtime_machine_then_resume(tmp_path, sim_factory, machine):
     """SIGINT mid-winding at real speed: exit 130 with the resume command; --resume finishes exactly."""
-    plan = small_plan(n=4, seed=14)
+    plan = for_machine(small_plan(n=4, seed=14), machine)
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory(machine, realtime=True)
     cmd = STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", machine, "--port", str(sim.pty),

@@ -3,7 +3,8 @@
 The only package that talks to the terminal; each area's commands live in a
 module of their own (planning, machines, winding) and register on :data:`cli`.  Errors become one line and an
 exit code: :class:`~stringbot.errors.BadInput` and bad options -> 2,
-:class:`~stringbot.errors.MachineFailure` -> 1, Ctrl-C -> 130.
+:class:`~stringbot.errors.MachineFailure` -> 1, a stop for a spool change
+(:class:`~stringbot.errors.SpoolChange`) -> 3, Ctrl-C -> 130.
 """
 
 import logging
@@ -19,7 +20,7 @@ if not any(os.environ.get(v) for v in ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 from .. import __version__
-from ..errors import BadInput, Interrupted, MachineFailure
+from ..errors import BadInput, Interrupted, MachineFailure, SpoolChange
 
 log = logging.getLogger("stringbot")
 
@@ -63,6 +64,9 @@ def main(argv=None):
         fail(str(exc), 2)
     except MachineFailure as exc:
         fail(str(exc), 1)
+    except SpoolChange as exc:      # not an error: the winding waits for a person
+        click.echo(f"stringbot: {exc}", err=True)
+        sys.exit(SpoolChange.exit_code)
     except Interrupted as exc:
         fail(str(exc), 130)
     except KeyboardInterrupt:

@@ -125,3 +125,87 @@ def score_colour(plan, plan_path, image):
     pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
     return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background,
                         width=plan.thread_model().fraction)
+
+
+# == winding a colour plan: the spool changes ==
+
+SPOOL_CHANGES = ("ask", "stop", "continue")
+
+
+def spool_change_mode(option, *, yes, dry_run):
+    """``wind --spool-change`` checked against ``--yes`` and the port (None: the default, see
+    :func:`stringbot.winding.layers.threads_for`)."""
+    if option == "ask" and yes:
+        raise BadInput("--spool-change ask asks at a terminal and --yes asks nothing; give one of them")
+    if option == "stop" and dry_run:
+        raise BadInput("--spool-change stop: a dry run's simulated machine ends with its command, so the "
+                       "winding could not be resumed after the stop; give --port (or leave it out: the "
+                       "simulated operator ties each thread on)")
+    return option
+
+
+def simulated_hands(job):
+    """A dry run's simulated operator, who ties each thread on when the host asks: the ``sim://``
+    world is told (its record then has every wrap's colour).  None on a port: a person ties it on."""
+    if not job.dry_run:
+        return None
+    from firmware_protocol.urlhandler import protocol_sim
+
+    url = str(job.url)
+    return lambda color, pin: protocol_sim.tie_on(url, color, pin)
+
+
+def _word(text):
+    return "-".join(str(text).strip().lower().replace("_", " ").split())
+
+
+def confirm_thread(question, color, *, prompt, say):
+    """Ask until the operator types the thread's name (or its ``#rrggbb``, or ``y``): True; ``n``:
+    False.  There is no default: an empty answer asks again, another colour is refused."""
+    from ..planner.palette import color_name, describe_color
+
+    name = color_name(color)
+    yes = {_word(color), _word(name), "y", "yes"}
+    hint = f"type {name} (or y) once it is tied on, n to stop"
+    while True:
+        answer = _word(prompt(f"{question} [{hint}]"))
+        if answer in yes:
+            return True
+        if answer in ("n", "no"):
+            return False
+        if answer:
+            say(f"{answer!r} is not the {describe_color(color)} thread; {hint}")
+
+
+def first_thread_line(plan, mode):
+    """Before a colour plan's winding with nobody to ask: the thread it starts with, and what
+    happens at the spool changes."""
+    from ..planner.palette import describe_color
+
+    n = len(plan.colors) - 1
+    then = {"stop": f"it stops at each of the {n} spool change(s) (exit 3) for you to tie the next one on",
+            "continue": f"it goes through the {n} spool change(s) without stopping (--spool-change continue)"}
+    return (f"threads: layer 1 of {len(plan.colors)} is the {describe_color(plan.colors[0])} thread, tied on "
+            f"at pin {plan.sequence[0]} before starting (--yes asks nothing); {then[mode]}")
+
+
+def tie_on_simulator(pty_path, color, pin, *, serving):
+    """``simulate --pty PATH --tie-on COLOUR``: tell the simulator serving on PATH that the operator tied
+    a thread of COLOUR on (its operator socket); its record gives every later wrap that colour."""
+    from firmware_protocol.pty import OPERATOR_SUFFIX, tell_operator
+
+    from ..planner.palette import describe_color, parse_color
+
+    if color is None:
+        raise BadInput("--pin goes with --tie-on COLOUR (the thread tied on at that pin)")
+    record, realtime, faults, settings = serving
+    if record or realtime or faults or settings:
+        raise BadInput("--tie-on talks to a simulator that is already serving; leave out --record, --realtime, "
+                       "--faults and --set (they are for starting one)")
+    hex_color = parse_color(color, what="--tie-on")
+    if not tell_operator(pty_path, {"tie_on": hex_color, "pin": pin}):
+        raise BadInput(f"--pty {pty_path!r}: no simulator serves there (no operator socket "
+                       f"{pty_path + OPERATOR_SUFFIX!r}); expected the path of a running "
+                       "`stringbot simulate --pty PATH`")
+    at = "" if pin is None else f" at pin {pin}"
+    click.echo(f"tied the {describe_color(hex_color)} thread on{at} (simulator on {pty_path})")

@@ -47,18 +47,22 @@ Examples:
     "estimate": """\b
 Examples:
   stringbot estimate camera.json --machine grbl-ring
-  stringbot estimate camera.json --machine marlin-ring --json""",
+  stringbot estimate camera.json --machine grblhal-ring --json
+  stringbot estimate cat.json                 (a plan made with --machine: that machine)""",
     "wind": """\b
 Examples:
   stringbot wind camera.json --machine grbl-ring --yes --record camera-record.json   (a dry run)
   stringbot wind camera.json --machine grbl-ring --port /dev/ttyUSB0
   stringbot wind camera.json --machine fluidnc-ring --port socket://192.168.1.50:23
   stringbot wind camera.json --machine grbl-ring --port /dev/ttyUSB0 --resume
-  stringbot wind camera.json --machine grbl-ring --status""",
+  stringbot wind camera.json --machine grbl-ring --status
+  stringbot wind cat.json --port /dev/ttyUSB0 --yes   (the plan's machine; a colour plan stops at each
+                                                       spool change, exit 3, with the resume command)""",
     "simulate": """\b
 Examples:
   stringbot simulate --machine grbl-ring --pty /tmp/ring
-  stringbot simulate --machine grbl-ring --pty /tmp/ring --faults power@500,reset@2000""",
+  stringbot simulate --machine grbl-ring --pty /tmp/ring --faults power@500,reset@2000
+  stringbot simulate --pty /tmp/ring --tie-on crimson --pin 42   (your hands at that running simulator)""",
 }
 
 

@@ -35,16 +35,22 @@ def machines_show_cmd(name):
         click.echo(f"# {label + ':':<15} {text}")
 
 
-def _plan_and_machine(plan, machine):
-    from firmware_protocol.machine import load_machine
-
+def _plan_and_machine(plan, machine, force):
     from ..motion import check_plan_fits
     from ..planner.plan_file import read_plan
+    from .plan_machine import check_thread, plan_machine
 
-    m = load_machine(machine)
     p = read_plan(plan)
-    check_plan_fits(p, m)
+    m = plan_machine(p, plan, machine)
+    check_plan_fits(p, m)                   # pins and frame first: a plan for another ring is that first
+    if not force:
+        check_thread(p, plan, m)
     return p, m
+
+
+MACHINE_HELP = "Machine name (see `stringbot machines`) or a .toml path [default: the plan's, from plan --machine]."
+FORCE_HELP = ("Use the plan even though it was made for another thread-to-diameter ratio than the machine's "
+              "(the piece then comes out darker or lighter than its preview).")
 
 
 def _estimate_lines(est):
@@ -59,10 +65,11 @@ def _estimate_lines(est):
 
 @cli.command("gcode")
 @click.argument("plan", type=click.Path(path_type=str))
-@click.option("--machine", required=True, help="Machine name (see `stringbot machines`) or a .toml path.")
+@click.option("--machine", default=None, help=MACHINE_HELP)
 @click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str, allow_dash=True),
               help="G-code file to write (for UGS, bCNC, OctoPrint...), or - for standard output.")
-def gcode_cmd(plan, machine, output):
+@click.option("--force", is_flag=True, help=FORCE_HELP)
+def gcode_cmd(plan, machine, output, force):
     """Write the whole winding of PLAN on MACHINE as one G-code program."""
     import os
     import sys
@@ -73,7 +80,7 @@ def gcode_cmd(plan, machine, output):
     check_output_path(output, what="G-code", allow_stdout=True)
     check_not_same_file(output, plan, what="G-code", source_what="plan")
     check_ours(output, "gcode", what="G-code", instead="give a new file")  # never someone's own program
-    p, m = _plan_and_machine(plan, machine)
+    p, m = _plan_and_machine(plan, machine, force)
     dialect_for(m)
     text = gcode_job(p, m, plan_name=os.path.basename(plan))
     if output == "-":
@@ -90,15 +97,16 @@ def gcode_cmd(plan, machine, output):
 
 @cli.command("estimate")
 @click.argument("plan", type=click.Path(path_type=str))
-@click.option("--machine", required=True, help="Machine name (see `stringbot machines`) or a .toml path.")
+@click.option("--machine", default=None, help=MACHINE_HELP)
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-def estimate_cmd(plan, machine, as_json):
+@click.option("--force", is_flag=True, help=FORCE_HELP)
+def estimate_cmd(plan, machine, as_json, force):
     """Machine time, ring travel and thread length of winding PLAN on MACHINE."""
     import json
 
     from ..motion import estimate, format_duration
 
-    p, m = _plan_and_machine(plan, machine)
+    p, m = _plan_and_machine(plan, machine, force)
     est = estimate(p, m)
     layers = None
     if not p.is_mono:

@@ -24,9 +24,10 @@ def _emit(output, data, *, what, source=None):
     write_atomic(output, data, what=what)
 
 
-def _frame_size(plan, diameter_mm, machine):
-    """(size_mm, where it came from, Machine or None): --diameter-mm, --machine, or the plan's own."""
-    from firmware_protocol.machine import load_machine
+def _frame_size(plan, diameter_mm, machine, *, plan_path, force=False):
+    """(size_mm, where it came from, Machine or None): --diameter-mm, --machine, the plan's machine
+    (``parameters.machine``), or the plan's own frame."""
+    from .plan_machine import check_thread, plan_machine
 
     if diameter_mm is not None and machine is not None:
         raise BadInput("--diameter-mm and --machine both give the frame size; give one of them")
@@ -34,14 +35,16 @@ def _frame_size(plan, diameter_mm, machine):
         if not 10 <= diameter_mm <= 5000:
             raise BadInput(f"--diameter-mm {diameter_mm:g}; expected 10..5000 mm")
         return diameter_mm, "--diameter-mm", None
-    if machine is not None:
-        m = load_machine(machine)
+    if machine is not None or plan.parameters.get("machine"):
+        m = plan_machine(plan, plan_path, machine)
         if m.pins != plan.pins:
             raise BadInput(f"plan has {plan.pins} pins but machine {m.name!r} has ring.pins = {m.pins}; "
                            "expected the same pin count")
         if plan.frame != "circle":
             raise BadInput(f"plan is for a {plan.frame} frame but machine {m.name!r} winds a ring; "
                            "expected a plan made with --frame circle")
+        if not force:
+            check_thread(plan, plan_path, m)
         return m["ring.diameter_mm"], f"machine {m.name}", m
     size = getattr(plan, "diameter_mm", None)           # the plan's frame (500 mm when it names none)
     if size:
@@ -107,8 +110,12 @@ Examples:
               help="Pin list to write: .txt (pages of 100 steps), .csv, or - for standard output (text).")
 @click.option("--diameter-mm", type=float, default=None,
               help="Ring diameter (a square frame's side), mm: the thread length in metres.")
-@click.option("--machine", default=None, help="Take the ring diameter from this machine (name or .toml).")
-def pins_cmd(plan, output, diameter_mm, machine):
+@click.option("--machine", default=None,
+              help="Take the ring diameter from this machine (name or .toml) [default: the plan's, from plan "
+                   "--machine].")
+@click.option("--force", is_flag=True,
+              help="Use the plan even though it was made for another thread-to-diameter ratio than the machine's.")
+def pins_cmd(plan, output, diameter_mm, machine, force):
     """Write the pin list of PLAN for winding by hand: step, pin, wrap direction.
 
     A colour plan's list goes thread by thread, saying before each which colour to tie on at
@@ -125,7 +132,7 @@ def pins_cmd(plan, output, diameter_mm, machine):
     check_output_path(output, what="pin list", allow_stdout=True)      # before the work
     check_not_same_file(output, plan, what="pin list", source_what="plan")
     p = read_plan(plan)
-    size, size_from, mach = _frame_size(p, diameter_mm, machine)
+    size, size_from, mach = _frame_size(p, diameter_mm, machine, plan_path=plan, force=force)
     thread_m = None
     if mach is not None:
         from ..motion import estimate

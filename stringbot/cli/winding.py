@@ -4,24 +4,25 @@ import sys
 
 import click
 
-from ..errors import BadInput, Interrupted, MachineFailure
+from ..errors import BadInput, Interrupted, MachineFailure, SpoolChange
 from . import cli
 from .progress import fmt_s as _fmt_s
 
 
-def _resume_command(plan, machine_name, port, journal):
+def _resume_command(plan, machine_name, port, journal, *extra):
     import shlex
-    parts = ["stringbot", "wind", plan, "--machine", machine_name]
+    parts = ["stringbot", "wind", plan] + (["--machine", machine_name] if machine_name else [])
     if port:
         parts += ["--port", port]
     if journal:
         parts += ["--journal", journal]
-    return " ".join(shlex.quote(p) for p in parts + ["--resume"])
+    return " ".join(shlex.quote(p) for p in parts + ["--resume", *extra])
 
 
 @cli.command()
 @click.argument("plan", type=click.Path(dir_okay=True))
-@click.option("--machine", "machine_name", required=True, help="Machine name (bundled) or machine file path.")
+@click.option("--machine", "machine_name", default=None,
+              help="Machine name (bundled) or machine file path [default: the plan's, from plan --machine].")
 @click.option("--port", default=None, help="Serial port or URL (/dev/ttyUSB0, COM3, socket://h:p, sim://...); "
               "default: the simulated machine.")
 @click.option("--record", default=None, type=click.Path(dir_okay=False),
@@ -44,11 +45,19 @@ def _resume_command(plan, machine_name, port, journal):
                    "[default: the bar on a terminal, otherwise a line every 30 s].")
 @click.option("--no-check", "no_check", is_flag=True,
               help="Do not compare the firmware's settings with the machine file before the first move.")
+@click.option("--spool-change", "spool_change", type=click.Choice(["ask", "stop", "continue"]), default=None,
+              help="A colour plan's spool changes: ask (type the colour; the default at a terminal), stop "
+                   "(exit 3 with what to tie on and the resume command; the default of --yes on a port), "
+                   "continue (a machine that changes thread itself; the default of a dry run).")
+@click.option("--force", is_flag=True,
+              help="Wind a plan made for another thread-to-diameter ratio than the machine's (the piece then "
+                   "comes out darker or lighter than its preview).")
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
-         faults, realtime, progress_every, no_check):
+         faults, realtime, progress_every, no_check, spool_change, force):
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
-    from ..winding import dry_run_problem, load_job, wind_plan
+    from ..winding import Job, dry_run_problem, wind_plan
     from ..winding import resume as resuming
+    from .plan_machine import check_thread, machine_for
 
     if show_status and port is None and journal is None:
         from ..winding.journal import journal_path_for
@@ -56,8 +65,10 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
         real = journal_path_for(plan)  # the machine's winding, not a dry run, is what --status is for
         if real.exists():
             journal = str(real)
-    job = load_job(plan, machine_name, port=port, record=record, journal=journal,
-                   realtime=realtime, faults=faults)
+    job = Job(plan, machine_for(plan, machine_name), port=port, record=record, journal=journal,
+              realtime=realtime, faults=faults)
+    if not (force or show_status):      # --status only reads the journal
+        check_thread(job.plan, plan, job.machine)
     if show_status:
         for line in resuming.status_lines(job):
             click.echo(line)
@@ -68,8 +79,15 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     if resume and from_step is not None:
         raise BadInput("--resume continues where the winding stopped, --from-step N restarts at step N; "
                        "give one of them, not both")
-    again = _resume_command(plan, machine_name, port, journal)
+    from .colour import simulated_hands, spool_change_mode
+    spool_change = spool_change_mode(spool_change, yes=yes, dry_run=job.dry_run)
+    again = _resume_command(plan, machine_name, port, journal, *(["--force"] if force else []))
     ask = _Asking()
+    threads = dict(spool_change=spool_change, ask_thread=None if yes else ask.thread, hands=simulated_hands(job))
+    if not job.plan.is_mono and yes and not resume and from_step is None:
+        from .colour import first_thread_line
+        click.echo(first_thread_line(job.plan, spool_change or ("continue" if job.dry_run else "stop")),
+                   err=True)
 
     # the settings check is imported here, not at the top: `stringbot plan` does not need it
     from ..links.settings_check import SettingsDisagree
@@ -82,15 +100,20 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
                                           confirm=None if yes else ask.confirm,
                                           choose=None if yes else ask.choose,
                                           jog=None if yes else ask.jog,
-                                          say=None if yes else ask.say, progress=progress)
+                                          say=None if yes else ask.say, progress=progress, **threads)
         else:
             result = wind_plan(job, confirm=None if yes else ask.confirm, progress=progress,
-                               check=not no_check)
+                               check=not no_check, **threads)
     except SettingsDisagree as exc:     # nothing moved: no resume to offer
         from .checking import refusal_lines
-        for line in refusal_lines(exc, machine_name, port):
+        for line in refusal_lines(exc, machine_name or job.plan.parameters.get("machine"), port):
             click.echo(f"stringbot: error: {line}", err=True)
         sys.exit(1)
+    except SpoolChange as exc:          # the machine holds with the head in, the journal has the stop
+        extra = [*(["--yes"] if yes else []), *(["--spool-change", spool_change] if spool_change else []),
+                 *(["--force"] if force else [])]
+        raise SpoolChange(f"{exc}; then resume with: {_resume_command(plan, machine_name, port, journal, *extra)}",
+                          layer=exc.layer) from None
     except (Interrupted, MachineFailure) as exc:
         if port is None:
             raise  # a dry run cannot be resumed (its simulated machine ends with the command)
@@ -123,6 +146,12 @@ class _Asking:
 
     def confirm(self, question):
         return self._prompt(lambda: click.confirm(question, default=True, err=True))
+
+    def thread(self, question, color):
+        """A spool change: the thread's colour typed (no default)."""
+        from .colour import confirm_thread
+        return confirm_thread(question, color, say=self.say, prompt=lambda text: self._prompt(
+            lambda: click.prompt(text, default="", show_default=False, err=True)))
 
     def choose(self, question, choices):
         return self._prompt(lambda: click.prompt(question, type=click.Choice(choices), err=True))
@@ -177,8 +206,15 @@ def _summary(result, machine):
 @click.option("--set", "settings", multiple=True, metavar="SETTING",
               help="Start the firmware with this setting instead of the machine file's (repeatable): "
                    "'$100=40' (GRBL, grblHAL), 'M92 A40' (Marlin), 'ring:Drive Mode=1' (Dynamixel ID:ITEM=VALUE).")
-def simulate(machine_name, pty_path, record, realtime, faults, settings):
+@click.option("--tie-on", "tie_on", default=None, metavar="COLOUR",
+              help="Do not serve: be the operator's hands at the simulator already serving on --pty, tying "
+                   "a thread of COLOUR (a name or #rrggbb) on, then exit (a colour plan's spool change).")
+@click.option("--pin", "tie_pin", type=click.IntRange(min=0), default=None, help="With --tie-on: at this pin.")
+def simulate(machine_name, pty_path, record, realtime, faults, settings, tie_on, tie_pin):
     """Serve the simulated machine on a pseudo-terminal until Ctrl-C."""
+    if tie_on is not None or tie_pin is not None:
+        from .colour import tie_on_simulator
+        return tie_on_simulator(pty_path, tie_on, tie_pin, serving=(record, realtime, faults, settings))
     from firmware_protocol.emulators.factory import build_emulator
     from firmware_protocol.machine import load_machine
     from firmware_protocol.pty import PtyPathError, PtyServer, check_pty_path

@@ -9,8 +9,10 @@ then, as the winding goes::
 
     {"kind": "move", "step": 17, "move": 1, "t": ...}     move 1 of step 17 executed
     {"kind": "done", "step": 17, "pin": 42, "t": ...}     step 17 EXECUTED (its sync answered)
-    {"kind": "stop", "reason": "interrupted" | "failed", "error": "...", "step": 18,
+    {"kind": "stop", "reason": "interrupted" | "failed" | "spool change", "error": "...", "step": 18,
      "pin": 7, "head": "in" | "out" | "unknown", "position": [ring_deg, head_mm] | null, "t": ...}
+                                          ("spool change": a colour plan stopped for a person to tie
+                                          on the thread of its "layer" (from 0), ``--yes`` on a port)
     {"kind": "recover", "banner": true, "alarm": "ALARM:3", "alarm_cleared": true,
      "mpos": [x, y, z], "position_wiped": false, "position": [ring_deg, head_mm] | null, "t": ...}
                                           what a resume attempt learned on reconnecting (written
@@ -182,7 +184,8 @@ _FIELDS = {
              "error": (False, "str_or_null", "a text"),
              "next_step": (False, "step_or_end", "a step index 0..{steps}"),
              "at": (False, "at", 'null or {{"step_index": 0..{steps}, "move": a whole number >= 0}}'),
-             "position": (False, "position", "null or a list of axis positions (numbers)")},
+             "position": (False, "position", "null or a list of axis positions (numbers)"),
+             "layer": (False, "index", "a layer index (a whole number >= 0)")},
 }
 
 

@@ -170,11 +170,13 @@ class Winder:
         except KeyboardInterrupt:
             self._interrupted()
         except Interrupted as exc:
-            # declined at a spool change: the machine stands at rest where the last step ended; the
-            # stop record keeps that measured position (after a reboot, e.g. an Uno's on open, it
-            # is the truth)
+            # declined at a spool change, or stopped there for a person (SpoolChange): the machine
+            # stands at rest where the last step ended; the stop record keeps that measured position
+            # (after a reboot, e.g. an Uno's on open, it is the truth)
             self.state = WindState.INTERRUPTED
-            self._stop_record("interrupted", str(exc), None)
+            layer = getattr(exc, "layer", None)
+            self._stop_record(getattr(exc, "reason", "interrupted"), str(exc), None,
+                              **({} if layer is None else {"layer": layer}))
             raise
         except MachineFailure as exc:
             self._failed(exc)
@@ -283,7 +285,7 @@ class Winder:
             settle()
         self._stop_record("failed", str(exc), None)
 
-    def _stop_record(self, reason, message, status):
+    def _stop_record(self, reason, message, status, **extra):
         if self.journal is None:
             return
         step, pin = self._current()
@@ -304,7 +306,7 @@ class Winder:
             self.journal.append({"kind": "stop", "reason": reason, "error": message,
                                  "step": step, "pin": pin, "next_step": self.done, "at": point,
                                  "position_lost": bool(getattr(self.link, "position_lost", False)),
-                                 "position": list(pos) if pos else None})
+                                 "position": list(pos) if pos else None, **extra})
         except OSError as exc:
             log.warning("could not write the journal's stop record: %s", exc)
 

@@ -100,12 +100,15 @@ def _journal_point(state):
 
 
 def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=None, progress=None,
-                link_options=None, jog=None, say=None):
+                link_options=None, jog=None, say=None, spool_change=None, ask_thread=None, hands=None):
     """Continue the winding of ``job`` from its journal (or restart at ``from_step``, from 1).
 
     ``head_side`` is the operator's statement (``--head-side``); ``confirm(question) -> bool``,
     ``choose(question, choices) -> choice`` and ``jog(prompt) -> str`` ask the operator, ``say``
     shows an instruction (None: nobody to ask, ``--yes``).  See :mod:`stringbot.winding.recover`.
+    ``spool_change``, ``ask_thread``, ``hands``: a colour plan's spool changes, as for
+    :func:`~stringbot.winding.session.wind_plan`; a resume after a stop for a spool change
+    (``--yes``) is the operator's word that the thread is on.
     """
     if job.dry_run:
         raise BadInput("a dry run's simulated machine lives only as long as its command, so there is "
@@ -129,8 +132,10 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
         link = open_link(job.url, machine, **(link_options or {}))
         winder = Winder(link, steps, machine, journal=journal, progress=progress, confirm=confirm)
         if not job.plan.is_mono:    # the journal says whose thread is on: only a new layer's is asked for
-            from .layers import Threads, tied_layer
-            winder.threads = Threads(job, journal, tied=tied_layer(state), confirm=confirm)
+            from .layers import spool_stop_layer, threads_for, tied_layer
+            ready = spool_stop_layer(_live_stop(state)) if from_step is None else None
+            winder.threads = threads_for(job, journal, tied=tied_layer(state), ready=ready, confirm=confirm,
+                                         spool_change=spool_change, ask_thread=ask_thread, hands=hands)
         winder.state = winder.state.CONNECTING
         with winder.stopping_on_ctrl_c("while reconnecting"):
             if hasattr(link, "reconnect"):

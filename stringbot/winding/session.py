@@ -129,13 +129,19 @@ def _new_journal(job):
                           machine=job.machine.name, steps=len(job.steps), durable=not job.fresh_world)
 
 
-def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=False):
+def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=False, spool_change=None,
+              ask_thread=None, hands=None):
     """Wind ``job`` from its first step.
 
     ``check`` (``stringbot wind`` sets it unless ``--no-check``): first compare
     the firmware's settings with the machine file
     (:func:`stringbot.links.settings_check.require_agreement`); a machine that
     disagrees raises ``SettingsDisagree`` before anything moves.
+
+    A colour plan's spool changes (:mod:`stringbot.winding.layers`): ``spool_change`` is
+    ``"ask"``, ``"stop"`` or ``"continue"`` (default: ask when there is ``confirm``, else continue
+    in a dry run and stop on a port); ``ask_thread(question, color) -> bool`` asks (default:
+    ``confirm(question)``); ``hands(color, pin)`` ties a thread on in a simulated world.
 
     Returns
     -------
@@ -160,8 +166,9 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
             winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
                        "then go on?")
         else:                       # the thread's colour, and a spool change before each later layer
-            from .layers import Threads
-            winder.threads = Threads(job, journal, confirm=confirm)
+            from .layers import threads_for
+            winder.threads = threads_for(job, journal, confirm=confirm, spool_change=spool_change,
+                                         ask_thread=ask_thread, hands=hands)
         with winder.stopping_on_ctrl_c("while moving to the start"):
             approach(link, job.machine, (first.moves[0].ring_deg, job.machine["head.in_mm"]),
                      tolerance(link, job.machine))
