@@ -16,6 +16,7 @@ from stringbot.links import gcode_machine_link
 from stringbot.motion import hook_steps
 from stringbot.winding import Journal, Winder, read_journal
 
+from planner_helpers import for_machine
 from test_wind_sim import EmulatorPort, small_plan
 
 
@@ -154,7 +155,7 @@ def test_a_firmware_that_acknowledges_without_executing_is_caught(tmp_path, name
     import json
     from stringbot.cli import main
     from stringbot.planner import write_plan
-    plan = small_plan(n=6, seed=8)
+    plan = for_machine(small_plan(n=6, seed=8), name)
     write_plan(plan, tmp_path / "p.json")
     record = tmp_path / "rec.json"
     with pytest.raises(SystemExit) as info:
