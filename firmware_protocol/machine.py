@@ -131,6 +131,14 @@ SCHEMA = {
     },
     "thread": {
         "diameter_mm": _Key(float, lo=0.0, hi=5.0, lo_open=True),
+        # written by `stringbot calibrate fit` from a photo of the wound calibration sheet
+        "effective_mm": _Key(float, None, lo=0.0, hi=5.0, lo_open=True,
+                             doc="calibrated: the width of a sharp, opaque thread that darkens the board as this "
+                                 "one does; the planner draws this width (unset: diameter_mm)"),
+        "board_gray": _Key(float, None, lo=0.0, hi=1.0,
+                           doc="calibrated: the bare board's gray level (sRGB, 0 black, 1 the sheet's white paper)"),
+        "thread_gray": _Key(float, None, lo=0.0, hi=1.0,
+                            doc="calibrated: the gray of a spot the thread covers (sRGB, as board_gray)"),
     },
     # optional section (every key has a default)
     "winding": {
@@ -213,6 +221,12 @@ class Machine:
         lo, hi = v.get("head.travel_min_mm"), v.get("head.travel_max_mm")
         return (min(ends) - margin if lo is None else lo, max(ends) + margin if hi is None else hi)
 
+    @property
+    def thread_width_key(self):
+        """The key of the width the planner draws the thread at: ``thread.effective_mm`` once
+        calibrated, else ``thread.diameter_mm``."""
+        return "thread.effective_mm" if self.values.get("thread.effective_mm") is not None else "thread.diameter_mm"
+
     def pin_angle(self, pin):
         """Ring axis position (degrees) at which ``pin`` faces the head station."""
         return self.values["ring.pin0_angle_deg"] + pin * self.pitch_deg
@@ -258,6 +272,13 @@ class Machine:
             step = 1.0 / v["ring.steps_per_deg"]
             rows.append(("ring step", f"{step:.4f} deg = {step * mm_per_deg:.4f} mm at the pins "
                                       f"({self.gap_tolerance_deg / step:.0f} steps of gap tolerance)"))
+        if v.get("thread.effective_mm") is not None:
+            grays = "".join(f", {what} gray {v[key]:g}" for what, key in (("board", "thread.board_gray"),
+                                                                          ("thread", "thread.thread_gray"))
+                            if v.get(key) is not None)
+            rows.append(("thread", f"calibrated: the planner draws {v['thread.effective_mm']:g} mm "
+                                   f"({v['thread.effective_mm'] / v['thread.diameter_mm']:.2f} x the "
+                                   f"{v['thread.diameter_mm']:g} mm diameter){grays}"))
         if v["controller.kind"] == "dynamixel":
             ticks = v["controller.gear_ratio"] * v["controller.ticks_per_turn"] / 360.0
             reach = (abs(v["ring.pin0_angle_deg"]) + travel) / 360.0 * v["controller.gear_ratio"]
@@ -361,6 +382,11 @@ def _check_consistency(m, source):
         if v["controller.ring_id"] == v["controller.head_id"]:
             raise MachineFileError(f"{source}: controller.ring_id and controller.head_id are both "
                                    f"{v['controller.ring_id']}; expected two different servo ids")
+    if v["thread.board_gray"] is not None and v["thread.thread_gray"] is not None \
+            and not v["thread.thread_gray"] < v["thread.board_gray"]:
+        raise MachineFileError(f"{source}: thread.thread_gray {v['thread.thread_gray']} is not darker than "
+                               f"thread.board_gray {v['thread.board_gray']}; expected a thread that shows on the "
+                               "board (gray levels 0 black .. 1 white)")
     if v["head.in_mm"] == v["head.out_mm"]:
         raise MachineFileError(f"{source}: head.in_mm equals head.out_mm ({v['head.in_mm']}); "
                                "expected two different positions (IN inside the pin circle, OUT outside)")

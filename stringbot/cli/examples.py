@@ -58,6 +58,18 @@ Examples:
   stringbot wind camera.json --machine grbl-ring --status
   stringbot wind cat.json --port /dev/ttyUSB0 --yes   (the plan's machine; a colour plan stops at each
                                                        spool change, exit 3, with the resume command)""",
+    "calibrate": """\b
+Examples:
+  stringbot calibrate sheet --machine grbl-ring -o sheet.json
+  stringbot calibrate fit sheet-photo.jpg --machine grbl-ring --sheet sheet.json -o mine.toml""",
+    "calibrate sheet": """\b
+Examples:
+  stringbot calibrate sheet --machine grbl-ring -o sheet.json                  (and sheet.pdf, to print)
+  stringbot calibrate sheet --machine grbl-ring -o sheet.json --template sheet.svg""",
+    "calibrate fit": """\b
+Examples:
+  stringbot calibrate fit sheet-photo.jpg --machine grbl-ring --sheet sheet.json -o mine.toml
+  stringbot plan examples/camera.png -o camera.json --machine mine.toml     (planned with the fitted thread)""",
     "simulate": """\b
 Examples:
   stringbot simulate --machine grbl-ring --pty /tmp/ring

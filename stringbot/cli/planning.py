@@ -38,7 +38,8 @@ class _Lines(click.ParamType):
 @click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
 @click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
 @click.option("--machine", default=None,
-              help="Take the pin count, ring diameter and thread width from this machine (name or TOML path).")
+              help="Take the pin count, ring diameter and thread width (its calibrated effective width, if any) from "
+                   "this machine (name or TOML path).")
 @click.option("--diameter-mm", type=float, default=None,
               help="Diameter of the pin circle (side of a square frame) in mm [default: 500, or the machine's].")
 @click.option("--thread-mm", type=float, default=None,
@@ -105,12 +106,12 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
             raise BadInput(f"--frame {frame} with machine {machine!r}, which winds a ring; expected --frame circle "
                            "(or leave out --machine)")
         pins = ring
-        for option, given, key in (("--diameter-mm", diameter_mm, "ring.diameter_mm"),
-                                   ("--thread-mm", thread_mm, "thread.diameter_mm")):
+        width = mach.thread_width_key     # a calibrated thread (`calibrate fit`) is drawn at its effective width
+        for option, given, key in (("--diameter-mm", diameter_mm, "ring.diameter_mm"), ("--thread-mm", thread_mm, width)):
             if given is not None and given != mach[key]:
                 raise BadInput(f"{option} {given:g} differs from machine {machine!r} ({key} = {mach[key]:g}); "
                                "give one of them")
-        diameter_mm, thread_mm = mach["ring.diameter_mm"], mach["thread.diameter_mm"]
+        diameter_mm, thread_mm = mach["ring.diameter_mm"], mach[width]
     pins = 300 if pins is None else pins
     from ..planner.build import thread_model
 

@@ -154,15 +154,19 @@ def template_pdf(*, paper="a4", **kw):
     if len(tiles) > 1:
         _alignment_marks(d, tiles)
 
-    def label(tile, rows, cols):
-        return (f"page {tile.row * cols + tile.col + 1} of {rows * cols}: row {tile.row + 1} of {rows}, "
-                f"column {tile.col + 1} of {cols}. Overlap the pages so the + marks coincide. "
-                "Print at 100 %.")
-    return to_pdf(d, paper=paper, page_label=label)
+    return to_pdf(d, paper=paper, page_label=page_label)
 
 
-def _alignment_marks(d, tiles):
-    """Crosses in the middle of every strip two neighbouring pages share, with a circle round them."""
+def page_label(tile, rows, cols):
+    """The line at the foot of each page of a tiled print: where it goes."""
+    return (f"page {tile.row * cols + tile.col + 1} of {rows * cols}: row {tile.row + 1} of {rows}, "
+            f"column {tile.col + 1} of {cols}. Overlap the pages so the + marks coincide. "
+            "Print at 100 %.")
+
+
+def _alignment_marks(d, tiles, keep=None):
+    """Crosses in the middle of every strip two neighbouring pages share, with a circle round them
+    (only where ``keep(x, y)`` is true, when given)."""
     xs = sorted({t.x0 for t in tiles})
     ys = sorted({t.y0 for t in tiles})
     w, h = tiles[0].w, tiles[0].h
@@ -172,11 +176,9 @@ def _alignment_marks(d, tiles):
     mark_y = [y + overlap_y / 2 for y in ys[1:]]
     along_x = [y + h / 2 for y in ys]       # marks on vertical seams: halfway down each row
     along_y = [x + w / 2 for x in xs]
-    for mx in mark_x:
-        for my in along_x + mark_y:
-            _mark(d, mx, my)
-    for my in mark_y:
-        for mx in along_y:
+    spots = [(mx, my) for mx in mark_x for my in along_x + mark_y] + [(mx, my) for my in mark_y for mx in along_y]
+    for mx, my in spots:
+        if keep is None or keep(mx, my):
             _mark(d, mx, my)
 
 

@@ -73,9 +73,9 @@ def default_crop(width, height):
     return {"cx": width / 2.0, "cy": height / 2.0, "r": min(width, height) / 2.0}
 
 
-def _upright_size(path):
+def _upright_size(path, what="picture"):
     """(width, height) of the picture as shown: swapped where its EXIF orientation turns it."""
-    im = _open(path, "picture")
+    im = _open(path, what)
     w, h = im.size
     try:
         if int(im.getexif().get(0x0112, 1)) in (5, 6, 7, 8):
