@@ -69,8 +69,9 @@ def render_photo(sheet, tf, shape, *, width_mm, thread=0.03, board=0.80, paper=0
         yy = (np.arange(r0, r1)[:, None] + sub[None, :]).ravel()
         xx = (np.arange(cols)[:, None] + sub[None, :]).ravel()
         X, Y = np.meshgrid(xx, yy)
-        p = tf.inverse(np.stack([X.ravel(), Y.ravel()], axis=1))
-        x, y = p[:, 0], p[:, 1]
+        m = np.linalg.inv(tf.params)
+        q = m @ np.stack([X.ravel(), Y.ravel(), np.ones(X.size)])
+        x, y = q[0] / q[2], q[1] / q[2]
         rad = np.hypot(x, y)
         v = np.full(len(x), table)
         v[np.maximum(abs(x), abs(y)) <= h] = paper

@@ -308,7 +308,7 @@ def _cells(sheet):
             lo = min(y.min() for y in ys) - 1.5 * shift
             hi = max(y.max() for y in ys) + 1.5 * shift
             edges = np.arange(lo - shift, hi + shift + 0.1, 0.1)
-            g = _covered_below(seg, x0, x1, edges, sheet.thread_mm, scanlines=32)
+            g = _covered_below(seg, x0, x1, edges, sheet.thread_mm, scanlines=32)[0]
 
             def cover(y0, y1):
                 return (np.interp(y1, edges, g) - np.interp(y0, edges, g)) / (y1 - y0)
@@ -338,29 +338,37 @@ def _segments(sheet):
     return a, b, slope, 0.5 * np.sqrt(1.0 + slope ** 2)
 
 
-def _covered_below(seg, x0, x1, edges, width, *, scanlines):
-    """Covered length below each of ``edges`` (sorted heights, mm), averaged over vertical scanlines
-    across ``[x0, x1]``, for bands of ``width``: the union of the bands, exactly along each scanline."""
+def _covered_below(seg, x0, x1, edges, widths, *, scanlines):
+    """Covered length below each of ``edges`` (sorted heights, mm) for bands of each of ``widths``,
+    averaged over vertical scanlines across ``[x0, x1]``: the union of the bands, exactly along each
+    scanline.  Returns shape ``(widths, edges)``."""
     a, b, slope, half = seg
+    widths = np.atleast_1d(widths)
     lo, hi = edges[0], edges[-1]
-    reach = width * half
+    reach = widths.max() * half
     ya, yb = a[:, 1] + (x0 - a[:, 0]) * slope, a[:, 1] + (x1 - a[:, 0]) * slope
     near = (a[:, 0] < x1) & (b[:, 0] > x0) & (np.maximum(ya, yb) + reach > lo) & (np.minimum(ya, yb) - reach < hi)
+    out = np.zeros((len(widths), len(edges)))
     if not near.any():
-        return np.zeros(len(edges))
+        return out
     xs = x0 + (np.arange(scanlines) + 0.5) / scanlines * (x1 - x0)
     yc = a[near, 1] + (xs[:, None] - a[near, 0]) * slope[near]            # (scanlines, chords)
     inside = (xs[:, None] >= a[near, 0]) & (xs[:, None] <= b[near, 0])
     order = np.argsort(np.where(inside, yc, -np.inf), axis=1)
     yc = np.take_along_axis(yc, order, axis=1)
-    h = half[near][order] * width
+    h = half[near][order]
     inside = np.take_along_axis(inside, order, axis=1)
-    s = np.where(inside, np.clip(yc - h, lo, hi), lo)
-    e = np.where(inside, np.clip(yc + h, lo, hi), lo)
-    before = np.concatenate([np.full((scanlines, 1), lo), np.maximum.accumulate(e, axis=1)[:, :-1]], axis=1)
-    s = np.maximum(s, before)               # the part of each band not covered by those below it:
-    e = np.maximum(e, s)                    # disjoint pieces whose union is the union of the bands
-    return np.clip(edges[:, None, None] - s, 0.0, e - s).sum(axis=2).mean(axis=1)
+    first = np.full((scanlines, 1), lo)
+    for j, w in enumerate(widths):
+        s = np.where(inside, np.clip(yc - w * h, lo, hi), lo)
+        e = np.where(inside, np.clip(yc + w * h, lo, hi), lo)
+        s = np.maximum(s, np.concatenate([first, np.maximum.accumulate(e, axis=1)[:, :-1]], axis=1))
+        e = np.maximum(e, s)     # the part of each band not under those below it: disjoint, same union
+        if len(edges) == 2:
+            out[j, 1] = (e - s).sum() / scanlines
+        else:
+            out[j] = np.clip(edges[:, None, None] - s, 0.0, e - s).sum(axis=2).mean(axis=1)
+    return out
 
 
 def cell_coverage(sheet, widths, *, scanlines=96):
@@ -384,9 +392,7 @@ def cell_coverage(sheet, widths, *, scanlines=96):
     seg = _segments(sheet)
     out = np.zeros((len(sheet.cells), len(widths)))
     for k, (x0, x1, y0, y1) in enumerate(sheet.cells):
-        for j, w in enumerate(widths):
-            g = _covered_below(seg, x0, x1, np.array([y0, y1]), w, scanlines=scanlines)
-            out[k, j] = (g[1] - g[0]) / (y1 - y0)
+        out[k] = _covered_below(seg, x0, x1, np.array([y0, y1]), widths, scanlines=scanlines)[:, 1] / (y1 - y0)
     return out
 
 

@@ -266,7 +266,7 @@ class Light:
         return np.exp(_terms(np.asarray(x) / self.half_mm, np.asarray(y) / self.half_mm) @ self.coef)
 
 
-def illumination(photo, tf, sheet, *, samples=400_000, what="photo"):
+def illumination(photo, tf, sheet, *, samples=200_000, what="photo"):
     """Fit the light and the board from the photo's known bare paper and board (module notes, 3).
 
     Returns
@@ -294,10 +294,11 @@ def illumination(photo, tf, sheet, *, samples=400_000, what="photo"):
     y = np.log(np.maximum(photo[r[use], c[use]].astype(float), 1e-4))
     w = np.ones(len(y))
     for _ in range(8):                      # iteratively reweighted least squares, Huber weights
-        coef = np.linalg.lstsq(a * w[:, None], y * w, rcond=None)[0]
+        aw = a * w[:, None]
+        coef = np.linalg.solve(aw.T @ a, aw.T @ y)
         res = y - a @ coef
         spread = 1.4826 * np.median(np.abs(res - np.median(res))) + 1e-6
-        w = np.sqrt(np.minimum(1.0, 1.345 * spread / np.maximum(np.abs(res), 1e-12)))
+        w = np.minimum(1.0, 1.345 * spread / np.maximum(np.abs(res), 1e-12))
     return Light(coef=coef[:-1], half_mm=sheet.half_mm, board=float(np.exp(coef[-1])), spread=float(spread),
                  paper_px=paper_px, board_px=board_px)
 
