@@ -36,11 +36,14 @@ def camera(sheet, shape, *, tilt=(0.0, 0.0), turn=0.0, fill=0.85, shift=(0.0, 0.
 
 def render_photo(sheet, tf, shape, *, width_mm, thread=0.03, board=0.80, paper=0.95, ink=0.03, table=0.25,
                  pins=0.35, gradient=(0.35, 30.0), vignette=0.25, light=0.9, blur=0.8, noise=0.01, k=4,
-                 threads=True, marks=True, rng=0):
+                 threads=True, marks=True, opacity=1.0, offset_mm=(0.0, 0.0), rng=0):
     """An 8-bit gray photo (ndarray of uint8, shape ``shape``) of ``sheet`` seen through ``tf``.
 
     Reflectances are linear light; ``gradient`` = (strength, direction in degrees) of a linear light
-    gradient across the photo, ``vignette`` its fall-off towards the corners.
+    gradient across the photo, ``vignette`` its fall-off towards the corners.  ``opacity`` < 1: each
+    thread lets that much less than all of what lies under it through (a spot under ``n`` threads is
+    ``thread + (under - thread) (1 - opacity) ** n``).  ``offset_mm``: the threads and pins lie that far
+    from where the printed sheet says (a sheet laid off, or threads seen aside of the paper under them).
     """
     rows, cols = shape
     rng = np.random.default_rng(rng)
@@ -48,10 +51,11 @@ def render_photo(sheet, tf, shape, *, width_mm, thread=0.03, board=0.80, paper=0
     cut = r_mm - 0.5 * sheet.rim_mm
     xy_pins = sheet.pin_mm()
     out = np.zeros(shape, np.float64)
-    mask = np.zeros((rows * k, cols * k), bool)
+    mask = np.zeros((rows * k, cols * k), np.uint8)     # threads over each sample
+    xy_pins = xy_pins + offset_mm
     if threads:
         piece = sheet.diameter_mm / 40          # short pieces: polygon() scans each one's bounding box
-        for a, b in sheet.chord_mm():
+        for a, b in sheet.chord_mm() + np.asarray(offset_mm):
             length = np.linalg.norm(b - a)
             d = (b - a) / length
             n = np.array([-d[1], d[0]]) * width_mm / 2
@@ -59,9 +63,12 @@ def render_photo(sheet, tf, shape, *, width_mm, thread=0.03, board=0.80, paper=0
             ends = a + t * (b - a)
             quads = tf(np.concatenate([ends[:-1] + n, ends[1:] + n, ends[1:] - n, ends[:-1] - n]))
             quads = quads.reshape(4, -1, 2)
+            spots = []
             for q in np.transpose(quads, (1, 0, 2)):
                 rr, cc = polygon((q[:, 1] + 0.5) * k - 0.5, (q[:, 0] + 0.5) * k - 0.5, shape=mask.shape)
-                mask[rr, cc] = True
+                spots.append(rr.astype(np.int64) * mask.shape[1] + cc)
+            spots = np.unique(np.concatenate(spots))          # each sample once per thread
+            mask.ravel()[spots] = np.minimum(mask.ravel()[spots], 254) + 1
     step = max(1, 2_000_000 // (cols * k * k))
     sub = (np.arange(k) + 0.5) / k - 0.5
     for r0 in range(0, rows, step):
@@ -91,7 +98,7 @@ def render_photo(sheet, tf, shape, *, width_mm, thread=0.03, board=0.80, paper=0
             v[near] = vn
         v = v.reshape(r1 - r0, k, cols, k)
         sub_mask = mask[r0 * k:r1 * k].reshape(r1 - r0, k, cols, k)
-        v = np.where(sub_mask, thread, v)
+        v = thread + (v - thread) * (1.0 - opacity) ** sub_mask
         out[r0:r1] = v.mean(axis=(1, 3))
     yy, xx = np.mgrid[0:rows, 0:cols]
     u, w = (xx - cols / 2) / (cols / 2), (yy - rows / 2) / (rows / 2)

@@ -8,6 +8,7 @@ are in benchmarks/bench_calibrate.py.
 
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +64,14 @@ def test_the_sheet_is_the_same_design_every_time_and_is_refused_for_another_ring
     assert again.sequence == sheet.sequence and np.array_equal(again.cells, sheet.cells)
     plan = sheet_plan(sheet, machine="small", thread_mm=0.25)
     assert sheet_from_plan(plan, machine="small", where="sheet", **SMALL).sequence == sheet.sequence
+    thick = design_sheet(thread_mm=0.4, **SMALL)             # densities for another thread: another sequence
+    assert thick.sequence != sheet.sequence
+    back = sheet_from_plan(sheet_plan(thick, machine="small", thread_mm=0.4), machine="small", where="sheet",
+                           **SMALL)
+    assert back.sequence == thick.sequence and back.thread_mm == 0.4
+    edited = replace(plan, sequence=plan.sequence[:-1])
+    with pytest.raises(BadInput, match="its pin sequence is not the calibration sheet"):
+        sheet_from_plan(edited, machine="small", where="sheet", **SMALL)
     with pytest.raises(BadInput, match=r"for machine 'small' \(120 pins on 200\.0 mm\), not for machine 'big' "
                                        r"\(300 pins on 500 mm\)"):
         sheet_from_plan(plan, machine="big", where="sheet", pins=300, diameter_mm=500.0, pin_diameter_mm=1.5)
@@ -73,8 +82,6 @@ def test_the_sheet_is_the_same_design_every_time_and_is_refused_for_another_ring
 def test_cell_coverage_is_the_union_of_the_threads_measured_by_brute_force(sheet):
     """A slice of one cell per patch against a point-by-point count on a fine grid (a point is covered when it
     lies within half a width of some chord): an independent computation of the same union."""
-    from dataclasses import replace
-
     picked = [int(np.argmax(sheet.cell_strip == k)) for k in range(len(sheet.strips))]
     slices = np.array([[x0, x0 + 3.0, y0, y1] for x0, x1, y0, y1 in sheet.cells[picked]])
     ab = sheet.chord_mm()

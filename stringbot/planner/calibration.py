@@ -437,7 +437,11 @@ def sheet_from_plan(plan, *, pins, diameter_mm, pin_diameter_mm, machine, where)
         raise BadInput(f"{where} is a calibration sheet for machine {info.get('machine')!r} ({theirs[0]} pins "
                        f"on {theirs[1]} mm), not for machine {machine!r} ({pins} pins on {diameter_mm:g} mm); "
                        "expected the sheet made with the same --machine")
-    sheet = design_sheet(pins=pins, diameter_mm=diameter_mm, pin_diameter_mm=pin_diameter_mm)
+    if not plan.thread_mm:
+        raise BadInput(f"{where}: field 'thread_mm' is missing; expected the plan that `stringbot calibrate sheet` "
+                       "wrote")
+    sheet = design_sheet(pins=pins, diameter_mm=diameter_mm, pin_diameter_mm=pin_diameter_mm,
+                         thread_mm=plan.thread_mm)
     if tuple(plan.sequence) != sheet.sequence:
         raise BadInput(f"{where}: its pin sequence is not the calibration sheet this stringbot designs for "
                        f"{pins} pins; expected the plan that `stringbot calibrate sheet` wrote, unedited")
