@@ -43,6 +43,8 @@ def setup(work):
     s.bind(str(work / "sock.journal"))
     (work / "notes.gcode").write_text("my own job\n")
     (work / "afile").write_text("x\n")
+    subprocess.run(STRINGBOT + ["calibrate", "sheet", "--machine", "marlin-ring", "-o", "marlin-sheet.json"], cwd=work,
+                   check=True, capture_output=True)
     text = (ROOT / "machines" / "grbl-ring.toml").read_text().replace("out_mm = 12.0", "out_mm = 0.5")
     (work / "short-stroke.toml").write_text(text)
     # issue 24: pictures of the user's own, G-code stringbot wrote, pictures it cannot plan well
@@ -73,6 +75,8 @@ CASES = [
     "plan camera.png -o fifo.json --pins 60 --lines 50 --size 101",
     "plan camera.png -o afile/out.json --pins 60 --lines 50 --size 101",
     "plan camera.png -o ring.json --machine grbl-ring --lines 50 --size 301",
+    # before the port cases: a wind that cannot open its port has already begun a new journal for ring.json
+    "calibrate sheet --machine grbl-ring -o ring.json",
     "plan camera.png -o - --pins 60 --lines 50",
     "render plan.json -o -",
     "wind ring.json --machine grbl-ring --yes --record fifo.json",
@@ -123,6 +127,13 @@ CASES = [
     "wind ring.json --machine grbl-ring --yes --port fifo.txt",
     "machines check grbl-ring --port afile",
     "simulate --pty live.pty",
+    # issue 23: calibration
+    "calibrate sheet --machine grbl-ring -o fifo.json",
+    "calibrate fit camera.png --machine grbl-ring -o mine.toml",
+    "calibrate fit afile --machine grbl-ring -o mine.toml",
+    "calibrate fit camera.png --machine grbl-ring --sheet plan.json -o mine.toml",
+    "calibrate fit camera.png --machine grbl-ring --sheet marlin-sheet.json -o mine.toml",
+    "calibrate fit camera.png --machine grbl-ring -o mine.json",
 ]
 #: Cases that go on with a warning (exit 0, one ``stringbot: warning:`` line).
 WARNINGS = ("plan strip.png",)

@@ -61,7 +61,7 @@ def sheet_cmd(machine, output, template, paper, force):
                  f"{format_duration(est.seconds)} of winding -> {output}")
     click.echo(f"template: {2 * sheet.half_mm:.0f} x {2 * sheet.half_mm:.0f} mm{pages} -> {template}")
     click.echo(f"next: print the template at 100 %, lay it under the ring (its pins on the pins, pin 0 at the top), "
-               f"stringbot wind {output} --machine {machine}, photograph it from the front in even light, then "
+               f"stringbot wind {output} --machine {machine} --port PORT, photograph it from the front in even light, then "
                f"stringbot calibrate fit PHOTO --machine {machine} -o mine.toml")
 
 
@@ -97,7 +97,7 @@ def fit_cmd(photo, machine, sheet_path, output):
         sheet = sheet_from_plan(plan, machine=m.name, where=f"sheet {sheet_path!r}", **ring)
     else:
         sheet = design_sheet(thread_mm=m["thread.diameter_mm"], **ring)
-    fit = fit_photo(photo, sheet, what=f"photo {photo!r}")
+    fit = fit_photo(photo, sheet, what="photo")
     values = {"effective_mm": round(fit.effective_mm, 4), "board_gray": round(fit.board_gray, 4),
               "thread_gray": round(fit.thread_gray, 4)}
     text = calibrated_text(m, values, note=f"`stringbot calibrate fit {os.path.basename(photo)}`")

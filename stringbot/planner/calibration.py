@@ -13,30 +13,32 @@ The layout
 *Patches* are horizontal strips of chords.  A chord between pins ``i`` and
 ``j`` runs at right angles to the direction ``pi (i + j) / pins``, so the chords
 of one sum ``i + j`` are exactly parallel, and each unit of sum turns a chord by
-``pi / pins``.  Strip ``k`` pairs ``m`` pins on the right with their mirror
-images on the left: chord ``(R_a, L_b)`` with ``R_a = j0 + a`` and ``L_b = pins
-- j0 - b`` has *tilt* ``a - b`` (its sum) and *position* ``(a + b) / 2``; the
-strip holds every chord of position ``0 .. m - 1`` and tilt ``-S .. S``.  Its
-middle is a band about ``m`` pin pitches high in which ``2 S + 1`` nearly
-parallel chords cross each pitch: ``2 S + 1`` lines per pitch, from one
-(exactly parallel threads a pitch apart) to about ``pins / 15``, so that the
-densest patch is covered about half by a thread of a 400th of the pitch
-(densities ``rho w`` about 0.05 to 1 for the bundled machines' threads).
+``pi / pins``.  Strip ``k`` pairs pins on the right with their mirror images on
+the left: chord ``(R_a, L_b)`` with ``R_a = j0 + a`` and ``L_b = pins - j0 - b``
+has *tilt* ``a - b`` (its sum) and *position* ``(a + b) / 2``; the strip holds
+every chord of position ``0 .. m - 1`` and tilt ``-S .. S``.  Its middle is a
+band :data:`BAND_FRACTION` of the diameter high (``m`` pin pitches) that
+``2 S + 1`` nearly parallel chords cross per pitch; away from the middle the
+tilts fan out (an hourglass).  ``S`` is chosen per strip for the thread's
+nominal width ``w``: lines per mm times ``w`` near :data:`DENSITIES`, from lone
+parallel threads a pitch apart to a patch the thread covers three quarters.
 The strips lie one above the other with bare board between them; a few short
-chords along the rim join the patches into one thread.
+chords along the rim (within :data:`RIM_FRACTION` of the diameter of the pins)
+join the patches into one thread.
 
-The *cells* are rectangles in the middle of each strip, where every tilt is
-present, inset from its edges (:data:`INSET_FRACTION` of the diameter) so that a
-sheet laid a little off, or threads seen a little aside of the paper under
-them, still fall inside.  :func:`cell_coverage` gives each cell's covered
-fraction for any thread width: the union of the threads (opaque bands of that
-width with sharp edges, two threads over a spot cover it once), computed
-exactly along vertical scanlines.
+The *cells* are rows across each strip, in four columns along its middle,
+whose covered fraction changes by at most :data:`ROBUST` of it when the
+threads lie :data:`SHIFT_FRACTION` of the diameter above or below where the
+sheet says (a sheet laid a little off, threads seen a little aside of the
+paper under them).  :func:`cell_coverage` gives each cell's covered fraction
+for any thread width: the union of the threads (opaque bands of that width
+with sharp edges, two threads over a spot cover it once), computed exactly
+along vertical scanlines.
 
 The *marks* are printed in the sheet's corners, outside the ring: a ring
 (hollow) at the top left, discs at the other three corners.  The printed sheet
-is a square of side ``diameter + 2 margin``; its labels' boxes are listed so
-that the photo's paper can be told from its ink.
+is a square of side ``diameter + 2 margin`` (:data:`MARGIN_FRACTION`); its
+labels' boxes are listed so that the photo's paper can be told from its ink.
 """
 
 import math

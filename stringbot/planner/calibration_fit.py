@@ -422,11 +422,14 @@ def fit_thread(sheet, observed, board, *, what="photo"):
 def fit_photo(path, sheet, *, what="photo"):
     """Read a photo of the wound ``sheet`` and fit its thread (the module notes' five steps).
 
+    ``what`` names the photo in error messages (with its path).
+
     Returns
     -------
     Fit
     """
     photo = read_photo(path, what=what)
+    what = f"{what} {str(path)!r}"
     tf = find_sheet(photo, sheet, what=what)
     light = illumination(photo, tf, sheet, what=what)
     observed, _ = measure_cells(photo, tf, sheet, light)
