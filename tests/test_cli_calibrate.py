@@ -94,11 +94,12 @@ def test_a_sheet_winds_is_photographed_fitted_and_planned_with(tmp_path, small):
     assert code == 0, err
     assert f"effective_mm = {mine['thread.effective_mm']!r}" in out
     assert f"# thread:         calibrated: the planner draws {mine['thread.effective_mm']:g} mm" in out
-    # the planner draws the fitted width
-    code, out, err = run("plan", ROOT / "examples" / "camera.png", "-o", tmp_path / "cam.json", "--machine",
-                         tmp_path / "mine.toml", "--lines", "40", "--size", "101")
-    assert code == 0, err
-    assert read_plan(tmp_path / "cam.json").thread_mm == mine["thread.effective_mm"]
+    # the planner draws the fitted width; without calibration, the diameter as before
+    for machine, width in ((tmp_path / "mine.toml", mine["thread.effective_mm"]), (small, 0.25)):
+        code, out, err = run("plan", ROOT / "examples" / "camera.png", "-o", tmp_path / "cam.json", "--machine",
+                             machine, "--lines", "40", "--size", "101")
+        assert code == 0, err
+        assert read_plan(tmp_path / "cam.json").thread_mm == width
     code, out, err = run("plan", ROOT / "examples" / "camera.png", "-o", tmp_path / "cam2.json", "--machine",
                          tmp_path / "mine.toml", "--lines", "40", "--size", "101", "--thread-mm", "0.25")
     refused(code, out, err, f"(thread.effective_mm = {mine['thread.effective_mm']:g})")
