@@ -64,6 +64,7 @@ def test_a_sheet_winds_is_photographed_fitted_and_planned_with(tmp_path, small):
     assert code == 0, err
     plan = read_plan(tmp_path / "sheet.json")
     assert plan.pins == 120 and plan.thread_mm == 0.25 and plan.extra["calibration"]["machine"] == "small-ring"
+    assert plan.extra["calibration"]["thread_mm"] == 0.25
     assert (tmp_path / "sheet.pdf").read_bytes().startswith(b"%PDF")
     assert f"{plan.stats['lines']} lines" in out and "-> " + str(tmp_path / "sheet.json") in out
     # it winds like any plan: the simulated machine's record has every pin, in order, and no collision
@@ -100,6 +101,20 @@ def test_a_sheet_winds_is_photographed_fitted_and_planned_with(tmp_path, small):
                              machine, "--lines", "40", "--size", "101")
         assert code == 0, err
         assert read_plan(tmp_path / "cam.json").thread_mm == width
+    # a plan made with the calibrated machine is that machine's: estimate (as wind, gcode, pins) takes it;
+    # so is a sheet made with it
+    code, out, err = run("plan", ROOT / "examples" / "camera.png", "-o", tmp_path / "cam.json", "--machine",
+                         tmp_path / "mine.toml", "--lines", "40", "--size", "101")
+    assert code == 0, err
+    for plan_path in (tmp_path / "cam.json", tmp_path / "sheet2.json"):
+        if plan_path.name == "sheet2.json":
+            code, out, err = run("calibrate", "sheet", "--machine", tmp_path / "mine.toml", "-o", plan_path)
+            assert code == 0, err
+            assert read_plan(plan_path).sequence == plan.sequence      # the same sheet: designed for the diameter
+        code, out, err = run("estimate", plan_path, "--machine", tmp_path / "mine.toml")
+        assert code == 0, err
+    code, out, err = run("estimate", tmp_path / "cam.json", "--machine", small)
+    refused(code, out, err, "thread", "--force")
     code, out, err = run("plan", ROOT / "examples" / "camera.png", "-o", tmp_path / "cam2.json", "--machine",
                          tmp_path / "mine.toml", "--lines", "40", "--size", "101", "--thread-mm", "0.25")
     refused(code, out, err, f"(thread.effective_mm = {mine['thread.effective_mm']:g})")

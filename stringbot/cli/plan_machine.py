@@ -63,9 +63,10 @@ def _named_machine(plan, plan_path):
 
 
 def ratios(plan, machine):
-    """(the plan's, the machine's) thread-to-diameter ratio."""
+    """(the plan's, the machine's) thread-to-diameter ratio; the machine's thread is the width `plan --machine`
+    draws it at (``thread.effective_mm`` once calibrated, else ``thread.diameter_mm``)."""
     model = plan.thread_model()
-    return model.thread_mm / model.diameter_mm, machine["thread.diameter_mm"] / machine["ring.diameter_mm"]
+    return model.thread_mm / model.diameter_mm, machine[machine.thread_width_key] / machine["ring.diameter_mm"]
 
 
 def thread_difference(plan, machine):
@@ -89,7 +90,8 @@ def check_thread(plan, plan_path, machine):
     made = f" (made for machine {named!r})" if isinstance(named, str) and named != machine.name else ""
     raise BadInput(
         f"plan {plan_path!r}{made} is for a {model.thread_mm:g} mm thread on a {model.diameter_mm:g} mm frame but "
-        f"machine {machine.name!r} winds a {machine['thread.diameter_mm']:g} mm thread on a "
+        f"machine {machine.name!r} winds a {machine[machine.thread_width_key]:g} mm thread"
+        f"{' (its calibrated effective width)' if machine.thread_width_key == 'thread.effective_mm' else ''} on a "
         f"{machine['ring.diameter_mm']:g} mm ring: for its size the thread is {abs(d) * 100:.0f} % {how}, so the "
         f"piece would come out {looks} than the plan's preview; plan it for this machine: "
         f"{replan_command(plan, plan_path, machine)} (or --force to use this plan anyway)")

@@ -399,7 +399,11 @@ def cell_coverage(sheet, widths, *, scanlines=96):
 
 
 def sheet_plan(sheet, *, machine, thread_mm):
-    """The sheet as a plan (version 1) that ``stringbot wind`` winds; its design in ``calibration``."""
+    """The sheet as a plan (version 1) that ``stringbot wind`` winds; its design in ``calibration``.
+
+    ``thread_mm`` is the plan's (the width the machine's plans are drawn at); the design's own thread
+    (the densities were chosen for) is ``calibration.thread_mm``.
+    """
     from .build import thread_length
     from .plan_file import Plan
 
@@ -408,7 +412,7 @@ def sheet_plan(sheet, *, machine, thread_mm):
     info = {"format": SHEET_FORMAT, "version": SHEET_VERSION, "machine": machine,
             "ring": {"pins": sheet.pins, "diameter_mm": sheet.diameter_mm,
                      "pin_diameter_mm": sheet.pin_diameter_mm},
-            "sheet_mm": round(2 * sheet.half_mm, 3),
+            "thread_mm": sheet.thread_mm, "sheet_mm": round(2 * sheet.half_mm, 3),
             "patches": [{"name": s.name, "tilt": s.tilt, "y_mm": round(s.y_mm, 3),
                          "lines_per_mm": round(s.lines_per_mm, 4), "chords": len(s.chords)} for s in sheet.strips],
             "marks": [[round(float(v), 3) for v in row] for row in sheet.marks]}
@@ -439,11 +443,11 @@ def sheet_from_plan(plan, *, pins, diameter_mm, pin_diameter_mm, machine, where)
         raise BadInput(f"{where} is a calibration sheet for machine {info.get('machine')!r} ({theirs[0]} pins "
                        f"on {theirs[1]} mm), not for machine {machine!r} ({pins} pins on {diameter_mm:g} mm); "
                        "expected the sheet made with the same --machine")
-    if not plan.thread_mm:
-        raise BadInput(f"{where}: field 'thread_mm' is missing; expected the plan that `stringbot calibrate sheet` "
-                       "wrote")
-    sheet = design_sheet(pins=pins, diameter_mm=diameter_mm, pin_diameter_mm=pin_diameter_mm,
-                         thread_mm=plan.thread_mm)
+    thread = info.get("thread_mm")
+    if isinstance(thread, bool) or not isinstance(thread, (int, float)) or not thread > 0:
+        raise BadInput(f"{where}: field 'calibration.thread_mm' is {thread!r}; expected the plan that "
+                       "`stringbot calibrate sheet` wrote")
+    sheet = design_sheet(pins=pins, diameter_mm=diameter_mm, pin_diameter_mm=pin_diameter_mm, thread_mm=float(thread))
     if tuple(plan.sequence) != sheet.sequence:
         raise BadInput(f"{where}: its pin sequence is not the calibration sheet this stringbot designs for "
                        f"{pins} pins; expected the plan that `stringbot calibrate sheet` wrote, unedited")
