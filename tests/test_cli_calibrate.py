@@ -121,8 +121,7 @@ def test_a_sheet_winds_is_photographed_fitted_and_planned_with(tmp_path, small):
 
 
 def test_bad_inputs_are_one_line_and_change_nothing(tmp_path, small):
-    mine = tmp_path / "mine.toml"
-    mine.write_text("keep me\n")
+    mine = tmp_path / "mine.toml"            # not written by any of these
     picture = ROOT / "examples" / "camera.png"
     code, out, err = run("calibrate", "sheet", "--machine", "grbl-ring", "-o", tmp_path / "big.json")
     assert code == 0, err
@@ -147,10 +146,19 @@ def test_bad_inputs_are_one_line_and_change_nothing(tmp_path, small):
         (("calibrate", "sheet", "--machine", small, "-o", tmp_path / "s.json", "--template", tmp_path / "s.png"),
          ("expected a file name ending in .pdf or .svg",)),
     ]
+    keep = tmp_path / "keep.toml"
+    keep.write_text("[tool.mine]\nkeep = true\n")
+    (tmp_path / "notes.json").write_text('{"mine": 1}\n')
+    cases += [
+        (("calibrate", "fit", picture, "--machine", small, "-o", keep),
+         ("exists and is not a machine file; not replacing it",)),
+        (("calibrate", "sheet", "--machine", small, "-o", tmp_path / "notes.json"),
+         ("exists and is a JSON file stringbot did not write",)),
+    ]
     for args, needles in cases:
         refused(*run(*args), *needles)
-    assert mine.read_text() == "keep me\n"
-    assert not (tmp_path / "s.json").exists() and not (tmp_path / "mine.txt").exists()
+    assert keep.read_text() == "[tool.mine]\nkeep = true\n" and (tmp_path / "notes.json").read_text() == '{"mine": 1}\n'
+    assert not mine.exists() and not (tmp_path / "s.json").exists() and not (tmp_path / "mine.txt").exists()
     few = tmp_path / "few.toml"
     few.write_text(small.read_text().replace("pins = 120 ", "pins = 40 "))
     refused(*run("calibrate", "sheet", "--machine", few, "-o", tmp_path / "s.json"), "at least 60 pins")

@@ -31,7 +31,7 @@ def sheet_cmd(machine, output, template, paper, force):
     """Write a calibration sheet for a machine: a small plan of patches of known thread density, and its print."""
     from firmware_protocol.machine import load_machine
 
-    from .._files import check_not_same_file, check_output_path, write_all_atomic
+    from .._files import check_not_same_file, check_ours, check_output_path, write_all_atomic
     from ..motion import estimate, format_duration
     from ..motion.calibration_sheet import sheet_pdf, sheet_svg
     from ..planner.calibration import design_sheet, sheet_plan
@@ -42,6 +42,7 @@ def sheet_cmd(machine, output, template, paper, force):
     if ext not in (".pdf", ".svg"):
         raise BadInput(f"--template {template!r}; expected a file name ending in .pdf or .svg")
     check_output_path(output, what="sheet")
+    check_ours(output, "plan", what="sheet", instead="give another -o")     # never someone's own file
     check_output_path(template, what="template")
     check_not_same_file(template, output, what="template", source_what="sheet")
     if not force:
@@ -74,7 +75,7 @@ def sheet_cmd(machine, output, template, paper, force):
               help="Machine file to write (.toml): the machine's, with the calibrated [thread] keys.")
 def fit_cmd(photo, machine, sheet_path, output):
     """Fit the thread's effective width and the board's and thread's grays from a PHOTO of the wound sheet."""
-    from firmware_protocol.machine import bundled_dir, load_machine
+    from firmware_protocol.machine import MachineFileError, bundled_dir, load_machine
 
     from .._files import check_not_same_file, check_output_path, write_atomic
     from ..planner.calibration import design_sheet, sheet_from_plan
@@ -90,6 +91,12 @@ def fit_cmd(photo, machine, sheet_path, output):
     if os.path.realpath(os.path.dirname(os.path.abspath(output))) == os.path.realpath(bundled_dir()):
         raise BadInput(f"-o {output!r} is among the bundled machine files; expected a file of your own "
                        "(e.g. -o mine.toml)")
+    if os.path.isfile(output) and os.path.getsize(output):
+        try:
+            load_machine(output)        # a machine file (the machine's own, say) may be replaced; nothing else
+        except MachineFileError:
+            raise BadInput(f"machine file path {output!r} exists and is not a machine file; not replacing it: "
+                           "give another -o (or remove that file)") from None
     m = load_machine(machine)
     ring = dict(pins=m.pins, diameter_mm=m["ring.diameter_mm"], pin_diameter_mm=m["ring.pin_diameter_mm"])
     if sheet_path:
