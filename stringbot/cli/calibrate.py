@@ -51,7 +51,7 @@ def sheet_cmd(machine, output, template, paper, force):
     thread = m["thread.diameter_mm"]
     sheet = design_sheet(pins=m.pins, diameter_mm=m["ring.diameter_mm"], pin_diameter_mm=m["ring.pin_diameter_mm"],
                          thread_mm=thread)
-    plan = sheet_plan(sheet, machine=m.name, thread_mm=m[m.thread_width_key])   # what its plans are drawn at
+    plan = sheet_plan(sheet, machine=machine, name=m.name, thread_mm=m[m.thread_width_key])  # as its plans are
     est = estimate(plan, m)
     data = sheet_svg(sheet, name=m.name) if ext == ".svg" else sheet_pdf(sheet, name=m.name, paper=paper)
     write_all_atomic([(output, plan.to_json(), "calibration sheet"), (template, data, "template")])

@@ -398,18 +398,20 @@ def cell_coverage(sheet, widths, *, scanlines=96):
     return out
 
 
-def sheet_plan(sheet, *, machine, thread_mm):
+def sheet_plan(sheet, *, machine, thread_mm, name=None):
     """The sheet as a plan (version 1) that ``stringbot wind`` winds; its design in ``calibration``.
 
-    ``thread_mm`` is the plan's (the width the machine's plans are drawn at); the design's own thread
-    (the densities were chosen for) is ``calibration.thread_mm``.
+    ``machine`` is recorded as ``plan --machine`` records it (the name or path as given: ``wind`` finds
+    it there), ``name`` (default ``machine``) the machine's own name.  ``thread_mm`` is the plan's (the
+    width the machine's plans are drawn at); the thread the densities were chosen for is
+    ``calibration.thread_mm``.
     """
     from .build import thread_length
     from .plan_file import Plan
 
     pin_xy = pin_positions(sheet.pins)
     chords = list(zip(sheet.sequence[:-1], sheet.sequence[1:]))
-    info = {"format": SHEET_FORMAT, "version": SHEET_VERSION, "machine": machine,
+    info = {"format": SHEET_FORMAT, "version": SHEET_VERSION, "machine": name or machine,
             "ring": {"pins": sheet.pins, "diameter_mm": sheet.diameter_mm,
                      "pin_diameter_mm": sheet.pin_diameter_mm},
             "thread_mm": sheet.thread_mm, "sheet_mm": round(2 * sheet.half_mm, 3),
