@@ -9,10 +9,14 @@ Every case runs the way a user works, and only that way:
   --faults SPEC`` in its own process;
 * the host is ``stringbot wind PLAN --machine NAME --port PTY --journal J --yes`` in another, then
   the same command with ``--resume`` after every stop, until it exits 0 or a limit is reached;
-* a resume that asks where the head is gets its answer from REC.json only, as a person looking at
-  the machine: ``--head-side in|out`` where the head is clearly IN or OUT; a resume that asks for a
-  terminal (the guided way) gets one -- its questions answered and its jogs typed from REC.json by
-  ``tests/scripted_operator.py`` -- and nothing else ever looks at live objects.
+* on a machine that homes, the first ``wind`` says ``--head-side in`` (the operator has just
+  powered it up with the head IN and says so: a firmware that just started cannot);
+* a run that asks where the head is gets its answer from REC.json only, as a person looking at
+  the machine: ``--head-side in|out`` where the head is clearly IN or OUT and the message offers
+  that side; a run that asks for a terminal (the guided way, for a resume or a start) gets one --
+  its questions answered and its jogs typed from REC.json by ``tests/scripted_operator.py`` (the
+  guide's own commands: ``ring``, ``pin``, ``head``, ``done``) -- and a message that says to run
+  the same command again gets that; nothing else ever looks at live objects.
 
 A case is judged by the world (the record the simulator writes when it stops): its wraps must
 equal the plan's sequence exactly, with no collision and no crash.  Outcomes:
@@ -22,15 +26,23 @@ refused     the last run stopped with a message naming a way out that this opera
             take (the world so far is a prefix of the plan, no collision)
 silent      a run exited 0 but the world differs (must be 0)
 hung        a run did not end within ``--timeout`` seconds (must be 0)
-failed      anything else: a traceback, a state no command leaves (the same stop again and again
-            while following its own advice), a world damaged before a refusal
+dead end    advice that leads nowhere: the same stop again and again while following it, or a
+            stop that names no way out (must be 0)
+failed      anything else: a traceback, a world damaged before a refusal
 
 Fault points come from one fault-free probe per machine (in process, ``sim://``): the line
 numbers of the moves of random steps, by kind of move -- the ring turning to a pin with the
 head IN (``ring``), the head going OUT (``out``), the ring turning with the head OUT
 (``hook``: mid-hook), the sync line that arrives while that turn runs (``hook-sync``) and the
 head coming back IN (``in``: the head OUT).  ``kind@N`` fires as line N arrives;
-``kind@N+0.5`` half way through line N's move (mid-move).  ``uno-*`` cases run a copy of the
+``kind@N+0.5`` half way through line N's move (mid-move).  The first-move cases
+(``first-power``, ``first-reboot``, ``first-reset``, each at the line and mid-move) strike the
+homing line (``home``: ``$H``, ``G28``) and the first ring move (``first``: to the first pin's
+gap).  ``start`` cases begin with a person's displacement typed into a terminal program before
+``wind`` (``out-pin``: the head OUT with a pin in front of it, half a pitch at most from the gap
+it went out by; ``out-gap``: OUT at a gap; ``ring``: the ring turned, the head IN) and, on a
+machine that homes, ``out-pin`` followed by a power cut (the firmware then cannot say where it
+stands).  ``uno-*`` cases run a copy of the
 machine file with ``controller.reset_on_open = true`` (the board reboots whenever the port
 opens).  ``dynamixel-ring`` takes its own faults (``power``, ``corrupt``, ``hardware``,
 ``silent`` at move N).  ``host-kill`` SIGKILLs the host ``--kills`` times at random moments
@@ -62,15 +74,18 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from matrix_user import (  # noqa: E402
-    STRINGBOT, Simulator, _done, _sigint_default, clear_side, run_guided, run_host)
+    DISPLACEMENTS, STRINGBOT, Simulator, _done, _sigint_default, clear_side, displacement, homes, run_guided,
+    run_host, type_lines)
 
-GCODE = ["grbl-ring", "grblhal-ring", "marlin-ring"]
+GCODE = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring"]
 LINE_KINDS = ["garble", "error", "drop-ok", "reset", "power", "disconnect", "reboot"]
 MID_KINDS = ["reset", "power", "reboot"]                   # kind@N+0.5
 UNO_KINDS = ["error", "disconnect", "reset"]               # with reset_on_open; reset mid-move
 DXL_KINDS = ["power", "corrupt", "hardware", "silent"]
 POINTS = ["ring", "out", "hook", "hook-sync", "in"]
-OUTCOMES = ["exact", "refused", "silent", "hung", "failed"]
+FIRST = ["home", "first"]            # the first moves: the homing line, the first ring move
+FIRST_KINDS = ["power", "reboot", "reset"]       # at a first point, as the line arrives and mid-move
+OUTCOMES = ["exact", "refused", "silent", "hung", "dead end", "failed"]
 WAYS_OUT = ("--resume", "--head-side", "--from-step", "terminal", "guided", "home", "power",
             "restart", "run the same command")
 HARDWARE = ("check its power", "cable")      # a stop that names a part to fix by hand
@@ -88,6 +103,8 @@ class Case:
     kills: list = field(default_factory=list)     # signal the host after these journaled step counts
     signal: int = signal.SIGKILL                  # SIGKILL (a dead computer) or SIGINT (Ctrl-C)
     sim_kill: int = 0                             # SIGKILL the simulator after this many steps
+    setup: str = ""                               # a displacement typed before the first wind
+    then: str = ""                                # and one more line (that a fault meets)
 
     @property
     def name(self):
@@ -124,7 +141,8 @@ def line_table(plan_path, machine):
     GcodeFirmware._line_faults = spy
     try:
         wind_plan(Job(plan_path, load_machine(machine), port=url,
-                      journal=Path(plan_path).with_suffix(".probe.journal")), confirm=None)
+                      journal=Path(plan_path).with_suffix(".probe.journal")), confirm=None,
+                  check=True)                 # as the command does: the settings check's lines count
     finally:
         GcodeFirmware._line_faults = orig
         protocol_sim.forget(url)
@@ -156,6 +174,23 @@ def fault_points(table, machine, rng, wanted=POINTS):
         ns = by_kind[kind.split("+")[0]]
         lo, hi = len(ns) * k // (len(wanted) + 1), len(ns) * (k + 2) // (len(wanted) + 1)
         points[kind] = ns[rng.randrange(max(lo, 1), max(hi, lo + 2))] if ns else None
+    return points
+
+
+def first_points(table, machine):
+    """The first moves of the job: the homing line (``$H``, ``G28``: machines that home) and the
+    first ring move (to the first pin's gap, the head IN)."""
+    from firmware_protocol.machine import load_machine
+    ring_ax = load_machine(machine)["controller.ring_axis"]
+    points = {}
+    for n, text, side in table:
+        words = re.sub(r"^N\d+ |\*\d+$", "", text).split()
+        if not words:
+            continue
+        if (words[0].startswith("$H") or words[0] == "G28") and "home" not in points:
+            points["home"] = n
+        if words[0] in ("G1", "G0") and {w[0] for w in words[1:]} <= {ring_ax, "F"} and side == "in":
+            points.setdefault("first", n)
     return points
 
 
@@ -196,6 +231,12 @@ def run_case(case, plan_path, seq, workdir, *, timeout=120.0, max_runs=10, seed=
     sim = Simulator(case.machine, pty, record, case.faults)
     try:
         extra, yes, repeats, last_msg = [], True, 0, None
+        if case.setup:              # a person left the machine off its start, in a terminal program
+            type_lines(pty, displacement(case.machine, case.setup), then=case.then or None)
+            log.append(f"(typed before winding: {' / '.join(displacement(case.machine, case.setup))}"
+                       + (f" / {case.then}" if case.then else "") + ")")
+        elif homes(case.machine):   # just powered up with the head IN: the operator says so
+            extra = ["--head-side", "in"]
         for run in range(1, max_runs + len(case.kills) + 1):
             sim.wait_port()
             args = base + (["--yes"] if yes else []) + extra
@@ -238,25 +279,27 @@ def run_case(case, plan_path, seq, workdir, *, timeout=120.0, max_runs=10, seed=
                 return {**result, "outcome": "refused", "runs": run, "stops": stops, "head_out": head_out,
                         "why": f"the same stop three times, naming a part to check: {msg[-300:]}"}
             if repeats >= 2:
-                return {**result, "outcome": "failed", "runs": run, "stops": stops, "head_out": head_out,
+                return {**result, "outcome": "dead end", "runs": run, "stops": stops, "head_out": head_out,
                         "why": f"the same stop three times while following its advice: {msg[-300:]}"}
             side = clear_side(rec, case.machine) if case.label != "dynamixel-ring" else rec.get("head_side")
-            if "--head-side" in msg and "--head-side" not in extra and side in ("in", "out"):
-                extra, yes = ["--resume", "--head-side", side], True      # clearly IN or OUT
+            offered = set(re.findall(r"--head-side (in|out)\b", msg))
+            resuming = ["--resume"] if "--resume" in extra else []
+            if side in offered and "--head-side" not in extra:
+                extra, yes = resuming + ["--head-side", side], True       # clearly IN or OUT, as offered
             elif yes and ("terminal" in msg or "guided" in msg or "without --yes" in msg):
-                extra, yes = ["--resume"], False               # among the pins: the guided way
+                extra, yes = resuming, False                   # among the pins: the guided way
             elif "nothing was wound yet" in msg or "run the same command again" in msg:
-                extra, yes = [], True
+                pass                                           # the same command (nothing moved)
             elif "--resume" in msg or "resume again" in msg:
                 extra, yes = ["--resume"], True
             else:
                 world_ok = _world_ok(sim.stop(), seq, False)
                 named = any(w in msg for w in WAYS_OUT)
-                outcome = "refused" if named and world_ok else "failed"
+                outcome = "refused" if named and world_ok else "dead end" if world_ok else "failed"
                 why = msg if world_ok else f"world damaged before the stop: {msg}"
                 return {**result, "outcome": outcome, "why": why[-300:], "runs": run, "stops": stops,
                         "head_out": head_out}
-        return {**result, "outcome": "failed", "why": f"not finished after {max_runs} runs: {last_msg}",
+        return {**result, "outcome": "dead end", "why": f"not finished after {max_runs} runs: {last_msg}",
                 "runs": max_runs, "stops": stops, "head_out": head_out}
     finally:
         sim.stop()
@@ -329,6 +372,17 @@ def build_cases(workdir, machines, kinds, n_points, kills, seed, plan_for):
             for kind in (k for k in MID_KINDS if f"{k}+0.5" in kinds):
                 for point, n in fault_points(table, name, rng, mid).items():
                     cases.append(Case(name, name, f"{kind}+0.5", f"{kind}@{n}+0.5", point))
+            for point, n in first_points(table, name).items():     # the first-move cases
+                for kind in (k for k in FIRST_KINDS if f"first-{k}" in kinds):
+                    cases.append(Case(name, name, f"first-{kind}", f"{kind}@{n}", point))
+                    cases.append(Case(name, name, f"first-{kind}+0.5", f"{kind}@{n}+0.5", point))
+            if "start" in kinds:                # displaced by a person before the start
+                for shift in DISPLACEMENTS:
+                    cases.append(Case(name, name, "start", point=shift, setup=shift))
+                if homes(name):                 # ... then the power went: the firmware cannot say
+                    lines = displacement(name, "out-pin")
+                    cases.append(Case(name, name, "start", f"power@{len(lines) + 1}", "out-pin, power",
+                                      setup="out-pin", then="G4 P0" if "marlin" not in name else "M400"))
             uno = uno_machine(workdir, name)
             for kind in (k for k in UNO_KINDS if f"uno-{k}" in kinds):
                 for point, n in fault_points(table, name, rng, mid).items():
@@ -368,6 +422,8 @@ def run_matrix(cases, plans, workdir, *, workers=2, timeout=120.0, progress=None
 
 def _way(entry):
     """``wind:1``, ``resume:2``, ``head-side in:0``, ``guided:0`` for one logged run."""
+    if not entry.startswith("$ stringbot"):
+        return "typed"                       # a person's lines before the first wind
     cmd, rc = entry.split("\n")[:2]
     way = ("guided" if "--yes" not in cmd else "head-side " + cmd.split("--head-side ")[1].split()[0]
            if "--head-side" in cmd else "resume" if "--resume" in cmd else "wind")
@@ -379,19 +435,19 @@ def table_lines(results):
     for r in results:
         rows[(r["label"], r["kind"])][r["outcome"]] += 1
         rows[(r["label"], r["kind"])]["head out"] += bool(r.get("head_out"))
-    out = [f"{'machine':13s} {'fault':15s} {'cases':>5s} " + " ".join(f"{o:>7s}" for o in OUTCOMES)
+    out = [f"{'machine':13s} {'fault':15s} {'cases':>5s} " + " ".join(f"{o:>8s}" for o in OUTCOMES)
            + "  head not IN at a stop"]
     totals = defaultdict(Counter)
     for (label, kind), c in rows.items():
         n = sum(c[o] for o in OUTCOMES)
-        out.append(f"{label:13s} {kind:15s} {n:5d} " + " ".join(f"{c[o]:7d}" for o in OUTCOMES)
+        out.append(f"{label:13s} {kind:15s} {n:5d} " + " ".join(f"{c[o]:8d}" for o in OUTCOMES)
                    + f"  {c['head out']}")
         for o in OUTCOMES:
             totals[label][o] += c[o]
     out.append("")
     for label, c in totals.items():
         n = sum(c[o] for o in OUTCOMES)
-        out.append(f"{label:13s} {'all':15s} {n:5d} " + " ".join(f"{c[o]:7d}" for o in OUTCOMES))
+        out.append(f"{label:13s} {'all':15s} {n:5d} " + " ".join(f"{c[o]:8d}" for o in OUTCOMES))
     return out
 
 
@@ -401,7 +457,8 @@ def main():
     ap.add_argument("--picture", default="camera.png", help="a picture in examples/")
     ap.add_argument("--machines", nargs="*", default=GCODE + ["dynamixel-ring"])
     ap.add_argument("--kinds", nargs="*", default=LINE_KINDS + [f"{k}+0.5" for k in MID_KINDS]
-                    + [f"uno-{k}" for k in UNO_KINDS] + ["dynamixel", "host-kill", "host-int", "sim-kill"])
+                    + [f"uno-{k}" for k in UNO_KINDS] + [f"first-{k}" for k in FIRST_KINDS]
+                    + ["start", "dynamixel", "host-kill", "host-int", "sim-kill"])
     ap.add_argument("--points", type=int, default=5, help="fault points per kind (5: ring, out, hook, "
                     "hook-sync, in; mid-move kinds skip hook-sync)")
     ap.add_argument("--kills", type=int, default=5, help="host SIGKILLs in the host-kill case")
@@ -450,7 +507,7 @@ def main():
     for r in results:
         if r.get("work") and r["outcome"] == "exact":
             shutil.rmtree(r["work"], ignore_errors=True)
-    return 1 if n["silent"] or n["hung"] else 0
+    return 1 if n["silent"] or n["hung"] or n["dead end"] else 0
 
 
 if __name__ == "__main__":

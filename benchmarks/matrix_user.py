@@ -190,3 +190,66 @@ def run_guided(args, machine, record, timeout):
     for t in readers:
         t.join(timeout=5)
     return proc.returncode, b"".join(outs).decode(), b"".join(chunks).decode()
+
+
+# ---- a person at a terminal program, before winding ---------------------------------------------
+
+DISPLACEMENTS = ("out-pin", "out-gap", "ring")
+
+
+def displacement(machine, kind):
+    """The lines a person types into a terminal program (before ``wind``) that leave the machine off
+    its start: ``out-pin`` -- out at the gap between pins 2 and 3, then the ring turned until the pin
+    is in front of the head (less than half a pitch: that gap stays the nearest, the one to come back
+    by); ``out-gap`` -- the head out at that gap; ``ring`` -- the ring turned, the head IN."""
+    from firmware_protocol.machine import load_machine
+    m = load_machine(machine)
+    ring, head = m["controller.ring_axis"], m["controller.head_axis"]
+    gap = m["ring.pin0_angle_deg"] + 2.5 * m.pitch_deg
+    off = (m.gap_tolerance_deg + m.pitch_deg / 2) / 2
+    out = m["head.out_mm"] - m["head.in_mm"]     # the firmware counts from where it started: the head IN
+    marlin = m["controller.dialect"] == "marlin"
+    homes = m["controller.homing"] or m.values.get("controller.head_homing")
+    lines = ["M211 S0"] if marlin else (["$X"] if homes else [])
+    lines.append("G90")
+    if kind == "ring":
+        lines.append(f"G1 {ring}37.3 F3000")
+    else:
+        lines += [f"G1 {ring}{gap:.4f} F3000", f"G1 {head}{out:.4f} F3000"]
+        if kind == "out-pin":
+            lines.append(f"G1 {ring}{gap + off:.4f} F3000")
+    lines.append("M400" if marlin else "G4 P0")
+    return lines
+
+
+def type_lines(pty, lines, *, then=None, timeout=30.0):
+    """Send ``lines`` to the simulator one by one, each answered before the next, then ``then``
+    (a last line, e.g. one that a fault is set to meet, not waited for); close the port."""
+    import serial
+    port = serial.Serial(str(pty), 115200, timeout=0.1)
+    try:
+        port.read(4096)                                  # the start banner, if it waits
+        for line in lines:
+            port.write(line.encode() + b"\n")
+            heard, deadline = b"", time.monotonic() + timeout
+            while b"ok" not in heard and b"error" not in heard.lower() and time.monotonic() < deadline:
+                heard += port.read(256)
+            if b"ok" not in heard:
+                raise RuntimeError(f"the simulator did not take {line!r}: {heard[-200:]!r}")
+        if then:
+            port.write(then.encode() + b"\n")
+            try:
+                port.read(256)
+            except (serial.SerialException, OSError):
+                pass
+    finally:
+        try:
+            port.close()
+        except (serial.SerialException, OSError):
+            pass
+
+
+def homes(machine):
+    from firmware_protocol.machine import load_machine
+    m = load_machine(machine)
+    return bool(m["controller.homing"] or m.values.get("controller.head_homing"))

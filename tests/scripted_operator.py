@@ -84,8 +84,22 @@ class ScriptedOperator:
             self._pin = int(pin.group(1))
             self._gap = int(gap.group(1)) if gap else None
 
+    def at_gap(self):
+        """A gap between two pins faces the head (within half the machine's gap tolerance)."""
+        m = self.m
+        ring, _ = self._seen()
+        p = (ring - m["ring.pin0_angle_deg"]) / m.pitch_deg
+        return abs(p - (round(p - 0.5) + 0.5)) * m.pitch_deg <= m.gap_tolerance_deg / 2
+
     def choose(self, question, choices):
         self.asked.append(question)
+        if "gap" in choices:               # before homing: IN, OUT at a gap, or be guided
+            side = self.clear_side()
+            if side == "in":
+                return "in"
+            if side == "out" and self.at_gap():
+                return "gap"
+            return "guide" if "guide" in choices else choices[0]
         if "in" in choices and "out" in choices:
             side = self.clear_side()
             return side if side is not None or "guide" not in choices else "guide"
@@ -104,6 +118,8 @@ class ScriptedOperator:
         faces = re.search(r"Pin (\d+) faces the head station and the head is IN", question)
         if faces:
             return self.facing() == int(faces.group(1)) and self.side() == "in"
+        if re.search(r"The head is IN \(the eyelet inside the pin circle\)\?", question):
+            return self.clear_side() == "in"
         return True
 
     def jog(self, prompt):

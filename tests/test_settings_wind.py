@@ -9,7 +9,7 @@ from stringbot.winding import read_journal
 
 from planner_helpers import for_machine
 from test_wind_cli import error_lines, run
-from test_wind_pty import Simulator
+from test_wind_pty import HOMES, Simulator
 from test_wind_sim import small_plan
 
 pytestmark = pytest.mark.timeout(120)
@@ -53,7 +53,7 @@ def test_mis_set_machine_is_named_refused_then_fixed_and_winds_exactly(tmp_path,
     assert code == 1 and f"  {fix}" in out.splitlines()
 
     wind = ["wind", str(tmp_path / "plan.json"), "--machine", machine, "--port", port, "--yes",
-            "--journal", str(journal)]
+            "--journal", str(journal)] + (["--head-side", "in"] if machine in HOMES else [])
     code, out, err = run(wind, capsys)
     assert code == 1, err
     lines = error_lines(err)

@@ -82,12 +82,27 @@ def wind(plan_path, machine, port, journal, *extra, timeout=120):
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
 
 
+HOMES = ("grblhal-ring", "marlin-ring")        # a start homes: the firmware that just started cannot say
+                                               # where the head is, so the operator does (--head-side in)
+
+
+def first_wind(plan_path, machine, port, journal, *extra):
+    """A fresh ``wind --yes``; on a machine that homes, the operator's word that the head is IN."""
+    return wind(plan_path, machine, port, journal, *(["--head-side", "in"] if machine in HOMES else []), *extra)
+
+
 @pytest.mark.parametrize("machine", ["grbl-ring", "grblhal-ring", "marlin-ring"])
 def test_wind_through_a_pty(tmp_path, sim_factory, machine):
     plan = for_machine(small_plan(n=14, seed=11), machine)
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory(machine)
-    done = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
+    if machine in HOMES:        # --yes alone does not say where the head is before homing
+        refused = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
+        assert refused.returncode == 2, refused.stderr
+        lines = [x for x in refused.stderr.splitlines() if x.startswith("stringbot:")]
+        assert len(lines) == 1 and "before homing" in lines[0] and "--head-side in" in lines[0]
+        assert json.loads(sim.record.read_text())["moves"] == 0
+    done = first_wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
     assert done.returncode == 0, done.stderr
     sim.stop()
     pins, collisions = sim.wraps()
@@ -100,7 +115,7 @@ def test_fault_through_a_pty_then_resume(tmp_path, sim_factory, machine, faults)
     plan = for_machine(small_plan(n=10, seed=12), machine)
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory(machine, faults)
-    first = wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
+    first = first_wind(tmp_path / "plan.json", machine, sim.pty, tmp_path / "j")
     assert first.returncode == 1, first.stderr
     assert "--resume" in first.stderr
     time.sleep(0.6)                              # the pty comes back after a pulled cable / power loss
@@ -161,7 +176,7 @@ def test_ctrl_c_on_a_realtime_machine_then_resume(tmp_path, sim_factory, machine
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory(machine, realtime=True)
     cmd = STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", machine, "--port", str(sim.pty),
-                       "--yes", "--journal", str(tmp_path / "j")]
+                       "--yes", "--journal", str(tmp_path / "j")] + (["--head-side", "in"] if machine in HOMES else [])
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(2.0)
     proc.send_signal(signal.SIGINT)

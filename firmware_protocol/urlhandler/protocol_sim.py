@@ -166,6 +166,14 @@ def tie_on(url, color, pin=None):
         s.world.tie_on(color, pin)
 
 
+def look(url):
+    """What the simulated operator sees of the machine behind ``url``: the world's physical
+    ``(ring_deg, head_mm)`` (a dry run's operator answers where the head stands from it)."""
+    s = session(url)
+    with s.lock:
+        return (float(s.world.ring_deg), float(s.world.head_mm))
+
+
 def forget(url=None):
     """Drop the simulated machine of ``url`` (all of them if None); its record is written first."""
     with _LOCK:

@@ -34,8 +34,9 @@ def _resume_command(plan, machine_name, port, journal, *extra):
 @click.option("--from-step", type=click.IntRange(min=1), default=None,
               help="Restart from step N (numbered from 1) after fixing something by hand.")
 @click.option("--head-side", type=click.Choice(["in", "out"]), default=None,
-              help="On resume, where the thread head is when the journal cannot know: fully IN or fully "
-                   "OUT (part way: resume without --yes to be guided).")
+              help="Where the thread head is when the host cannot know (on --resume or --from-step; before "
+                   "homing a machine whose firmware cannot say): fully IN or fully OUT (part way: run "
+                   "without --yes to be guided).")
 @click.option("--status", "show_status", is_flag=True,
               help="Show the journal's state and exit (without --port: the real winding's journal if any).")
 @click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
@@ -57,6 +58,8 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
     from ..winding import Job, dry_run_problem, wind_plan
     from ..winding import resume as resuming
+    from ..winding.operator import Operator
+    from ..winding.session import UnfinishedJournal, moved
     from .plan_machine import check_thread, machine_for
 
     if show_status and port is None and journal is None:
@@ -73,9 +76,10 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
         for line in resuming.status_lines(job):
             click.echo(line)
         return
-    if head_side is not None and not resume:
-        raise BadInput("--head-side says where the thread head is when a resume cannot know; it goes "
-                       "with --resume (leave it out otherwise)")
+    homes = job.machine["controller.homing"] or bool(job.machine.values.get("controller.head_homing"))
+    if head_side is not None and not resume and from_step is None and not homes:
+        raise BadInput("--head-side says where the thread head is when the host cannot know; it goes "
+                       "with --resume or --from-step (or a start that homes), so leave it out here")
     if resume and from_step is not None:
         raise BadInput("--resume continues where the winding stopped, --from-step N restarts at step N; "
                        "give one of them, not both")
@@ -84,6 +88,7 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     again = _resume_command(plan, machine_name, port, journal, *(["--force"] if force else []))
     ask = _Asking()
     threads = dict(spool_change=spool_change, ask_thread=None if yes else ask.thread, hands=simulated_hands(job))
+    eyes = _simulated_eyes(job)
     if not job.plan.is_mono and yes and not resume and from_step is None:
         from .colour import first_thread_line
         click.echo(first_thread_line(job.plan, spool_change or ("continue" if job.dry_run else "stop")),
@@ -100,10 +105,16 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
                                           confirm=None if yes else ask.confirm,
                                           choose=None if yes else ask.choose,
                                           jog=None if yes else ask.jog,
-                                          say=None if yes else ask.say, progress=progress, **threads)
+                                          say=None if yes else ask.say, progress=progress,
+                                          check=not no_check, eyes=eyes, **threads)
         else:
-            result = wind_plan(job, confirm=None if yes else ask.confirm, progress=progress,
-                               check=not no_check, **threads)
+            operator = Operator(head_side=head_side, confirm=None if yes else ask.confirm,
+                                choose=None if yes else ask.choose, jog=None if yes else ask.jog,
+                                say=None if yes else ask.say, look=eyes)
+            result = wind_plan(job, confirm=operator.confirm, progress=progress, check=not no_check,
+                               operator=operator, **threads)
+    except UnfinishedJournal as exc:
+        raise BadInput(f"{exc}: {again}") from None
     except SettingsDisagree as exc:     # nothing moved: no resume to offer
         from .checking import refusal_lines
         for line in refusal_lines(exc, machine_name or job.plan.parameters.get("machine"), port):
@@ -117,9 +128,12 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     except (Interrupted, MachineFailure) as exc:
         if port is None:
             raise  # a dry run cannot be resumed (its simulated machine ends with the command)
-        if not _anything_wound(job):
-            raise type(exc)(f"{exc}; nothing was wound yet: once that is fixed, run the same command "
-                            "again") from None
+        if not moved(job):
+            # nothing moved: a new start finds the machine as this one did
+            raise type(exc)(f"{exc}; nothing was wound yet (nothing moved): once that is fixed, run the "
+                            "same command again") from None
+        # something moved: only --resume knows where the machine may be now (a new start would
+        # trust a position the stop may have wiped)
         raise type(exc)(f"{exc}; resume with: {again}") from None
     finally:
         progress.close()
@@ -127,6 +141,18 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     if problem:
         raise MachineFailure(problem)
     click.echo(_summary(result, job.machine))
+
+
+def _simulated_eyes(job):
+    """A dry run's simulated operator, who looks at the machine when the host must ask where the
+    head stands (before homing, where the firmware cannot say): the ``sim://`` world's physical
+    ``(ring_deg, head_mm)``.  None on a port: a person looks."""
+    if not job.dry_run:
+        return None
+    from firmware_protocol.urlhandler import protocol_sim
+
+    url = str(job.url)
+    return lambda: protocol_sim.look(url)
 
 
 class _Asking:
@@ -162,20 +188,6 @@ class _Asking:
 
     def say(self, text):
         click.echo(text, err=True)
-
-
-def _anything_wound(job):
-    """The journal shows a step or a move executed (a resume then has something to continue)."""
-    from ..winding import read_journal
-    try:
-        state = read_journal(job.journal_path)
-    except BadInput:
-        return False
-    if state.done or state.resumes or state.next_move:
-        return True
-    # the first step's head move and approach hook nothing: a fresh start redoes them safely
-    return any((rec.get("at") or {}).get("step_index", 0) > 0 or (rec.get("at") or {}).get("move", 0) >= 2
-               for rec in state.stops)
 
 
 def _summary(result, machine):

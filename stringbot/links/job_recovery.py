@@ -65,7 +65,7 @@ class GcodeRecovery:
         self._read_settings()
         lines = list(said) + list(info.lines)
         seen = Reconnected(said=lines)
-        seen.banner = proto.position_lost or any(_started(x) for x in lines)
+        seen.banner = proto.position_lost or any(started(x) for x in lines)
         alarms = [x for x in lines if x.startswith("ALARM")]
         seen.alarm = alarms[-1] if alarms else None
         if grbl:
@@ -175,7 +175,7 @@ def _one_axis(link, move, axis):
     return f"G1 {letter}{fmt(value)} F{fmt(move.feed)}"
 
 
-def _started(line):
+def started(line):
     """A line a firmware prints when it (re)starts."""
     from firmware_protocol.grbl import is_banner
     return bool(line) and (is_banner(line) or line.strip() == "start")

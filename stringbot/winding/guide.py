@@ -27,7 +27,7 @@ from ..errors import BadInput, Interrupted
 from ..motion.safety import gap_offset_deg
 from .locate import side_of
 
-__all__ = ["guide_to_reference", "parse_jog", "JOG_HELP"]
+__all__ = ["guide_to_reference", "bring_head_in", "jog_loop", "crossings", "parse_jog", "JOG_HELP"]
 
 log = logging.getLogger(__name__)
 
@@ -54,6 +54,68 @@ def parse_jog(text, machine):
     return ("ring" if axis == "r" else "head", amount)
 
 
+def jog_loop(op, link, machine, question, *, quit_text):
+    """Move the machine by the operator's jog commands until ``done`` and a yes to ``question``;
+    returns the jogs ``[(axis, delta), ...]``.  ``quit`` raises :class:`Interrupted` (``quit_text``)."""
+    h_in = machine["head.in_mm"]
+    jogs = []
+    while True:
+        answer = op.jog("jog> ")
+        cmd = parse_jog(answer or "", machine)
+        if cmd is None:
+            op.tell(f"not a jog command: {answer!r}; {JOG_HELP}")
+            continue
+        if cmd == "help":
+            op.tell(JOG_HELP)
+            continue
+        if cmd == "quit":
+            raise Interrupted(quit_text)
+        if cmd == "done":
+            if op.confirm is None or op.confirm(question):
+                return jogs
+            continue
+        axis, delta = cmd
+        span = 360.0 if axis == "ring" else 2.0 * abs(machine["head.out_mm"] - h_in)
+        if abs(delta) > span:
+            op.tell(f"{axis} {delta:+g} is more than {span:g} at once; jog in smaller moves")
+            continue
+        link.jog(**{axis: delta})
+        jogs.append((axis, delta))
+
+
+def crossings(machine, start, jogs):
+    """Where the jogs from ``start`` ``(ring_deg, head_mm)`` took the head across the pin circle:
+    ``[(side after, ring_deg), ...]``; a crossing away from a gap is refused (it went through a pin)."""
+    tol = machine.gap_tolerance_deg + 1e-6
+    ring, head = start
+    out = []
+    for axis, d in jogs:
+        if axis == "head":
+            before, after = side_of(machine, head), side_of(machine, head + d)
+            if before != after:
+                gap, off = gap_offset_deg(machine, ring)
+                if off > tol:
+                    raise BadInput(f"by your jogs the head crossed the pin circle at ring {ring:.3f}, {off:.2f} "
+                                   f"deg from the nearest gap ({gap}|{(gap + 1) % machine.pins}): it went "
+                                   "through a pin; check the pins and the thread, then resume again")
+                out.append((after, ring))
+            head += d
+        else:
+            ring += d
+    return out
+
+
+def bring_head_in(link, machine, op, why):
+    """At a start, with the head OUT away from a gap (or where nobody knows): the operator jogs it
+    IN through a gap.  Returns the jogs (the caller checks them against what it knows)."""
+    op.tell(f"{why}.  Bring the head IN through a gap: turn the ring until a gap between two pins faces "
+            "the head (the gap it went out by, if a thread is on), then bring the head IN there (nowhere "
+            "else: it would hit a pin).  Then " + JOG_HELP + ".")
+    return jog_loop(op, link, machine, "The head is IN (the eyelet inside the pin circle)?",
+                    quit_text="stopped by the operator while bringing the head IN; the machine stays where "
+                              "it was jogged")
+
+
 def _near_angle(a, b, tol):
     return abs((a - b + 180.0) % 360.0 - 180.0) <= tol
 
@@ -77,30 +139,9 @@ def guide_to_reference(rec, why):
         text += (f"  If the head is OUT, first turn the ring until {sit.gap_text(out_gap)} faces the head, "
                  "and bring the head IN through it (nowhere else: it would hit a pin).")
     op.tell(text + "  Then " + JOG_HELP + ".")
-    jogs = []
-    while True:
-        answer = op.jog("jog> ")
-        cmd = parse_jog(answer or "", machine)
-        if cmd is None:
-            op.tell(f"not a jog command: {answer!r}; {JOG_HELP}")
-            continue
-        if cmd == "help":
-            op.tell(JOG_HELP)
-            continue
-        if cmd == "quit":
-            raise Interrupted("stopped by the operator during the guided resume; the machine stays where it "
+    jogs = jog_loop(op, link, machine, f"Pin {pin} faces the head station and the head is IN?",
+                    quit_text="stopped by the operator during the guided resume; the machine stays where it "
                               "was jogged: resume again to be guided")
-        if cmd == "done":
-            if op.confirm is None or op.confirm(f"Pin {pin} faces the head station and the head is IN?"):
-                break
-            continue
-        axis, delta = cmd
-        span = 360.0 if axis == "ring" else 2.0 * abs(machine["head.out_mm"] - h_in)
-        if abs(delta) > span:
-            op.tell(f"{axis} {delta:+g} is more than {span:g} at once; jog in smaller moves")
-            continue
-        link.jog(**{axis: delta})
-        jogs.append((axis, delta))
     # the reference, in the journal's turn of the ring
     ref = sit.after[0]
     ring = machine.pin_angle(pin)
@@ -127,36 +168,25 @@ def _hooked(rec, jogs, final, g1, g2, last):
         else:
             head -= d
     start_side = side_of(machine, head)
-    crossings = []
-    for axis, d in jogs:
-        if axis == "head":
-            before, after = side_of(machine, head), side_of(machine, head + d)
-            if before != after:
-                gap, off = gap_offset_deg(machine, ring)
-                if off > tol:
-                    raise BadInput(f"by your jogs the head crossed the pin circle at ring {ring:.3f}, {off:.2f} "
-                                   f"deg from the nearest gap ({gap}|{(gap + 1) % machine.pins}): it went "
-                                   "through a pin; check the pins and the thread, then resume again")
-                crossings.append((after, ring))
-            head += d
-        else:
-            ring += d
+    crossed = crossings(machine, (ring, head), jogs)
     if rec.from_step is not None or last:
+        return False
+    gaps = {round(((r - machine["ring.pin0_angle_deg"]) / machine.pitch_deg - 0.5)) % machine.pins
+            for _, r in crossed}
+    if len(gaps) > 1:
+        raise BadInput("by your jogs the head went out and in through different gaps: the thread now goes "
+                       "round pins the plan did not ask for; unwind it by hand, then restart with --from-step")
+    if sit.phase is not None:            # moving to the start: nothing was to be hooked
         return False
     if start_side == "in" and sit.side == "out":
         raise BadInput("by your jogs the head was IN when the guide began, but the journal says it was OUT "
                        "(turning the ring behind a pin): was the machine moved by hand?  Check the thread at "
                        f"pin {sit.pin}, then restart with --from-step")
-    if not crossings:
+    if not crossed:
         if start_side == "out":
             raise BadInput("the head never came IN during the guide, yet it is IN now?  Resume again")
         return sit.side is None and sit.m == sit.approach + 3     # it had finished coming IN at the far gap
-    gaps = {round(((r - machine["ring.pin0_angle_deg"]) / machine.pitch_deg - 0.5)) % machine.pins
-            for _, r in crossings}
-    last_in = [r for s, r in crossings if s == "in"][-1]
-    if len(gaps) > 1:
-        raise BadInput("by your jogs the head went out and in through different gaps: the thread now goes "
-                       "round pins the plan did not ask for; unwind it by hand, then restart with --from-step")
+    last_in = [r for s, r in crossed if s == "in"][-1]
     if start_side == "in":
         return sit.side is None and sit.m == sit.approach + 3   # out and back through one gap: no change
     if g2 is not None and _near_angle(last_in, g2, tol):

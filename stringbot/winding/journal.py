@@ -23,6 +23,12 @@ then, as the winding goes::
     {"kind": "resume", "from_step": 18, "t": ...}          a --resume (or --from-step) began here
     {"kind": "layer", "layer": 1, "color": "#b22222", "step": 812, "pin": 17, "t": ...}
                                                            a colour plan: that layer's thread tied on
+    {"kind": "homing", "from": [ring_deg, head_mm] | null, "how": "...", "t": ...}
+                                          homing is about to start from a position checked safe
+                                          (null: the operator's word, the firmware knew none)
+    {"kind": "approach", "from": [ring_deg, head_mm] | null, "to": [ring_deg, head_mm] | null, "t": ...}
+                                          a first move (head IN, then the ring to the job's start)
+                                          is about to be sent; ``to`` null: the operator jogs from there
     {"kind": "finished", "t": ...}
 
 A step is recorded only once the machine has executed it.  A record is written
@@ -74,6 +80,22 @@ class JournalState:
     next_step: int = 0                                # the first step not yet executed
     next_move: int = 0                                # the first move of it not yet executed
     epoch: list = field(default_factory=list)         # stop/recover/declared/refused since the last resume
+    homing: dict | None = None                        # the last "homing" record (a start's checked homing)
+    approach: dict | None = None                      # the last "approach" record, if no step moved since
+    moved: bool = False                               # anything was sent that moves the machine
+
+    def start_phase(self, point):
+        """Where a stop before the first step's moves left the job at journal point ``point``
+        ``(step, move)``: ``"approach"`` (a first move was sent, see :attr:`approach`),
+        ``"homing"`` (a checked homing began, :attr:`homing`), or None (the journal's path is
+        the steps', or nothing moved)."""
+        if tuple(point) != (0, 0) or self.done:
+            return None
+        if self.approach is not None:
+            return "approach"
+        if self.homing is not None:
+            return "homing"
+        return None
 
     @property
     def last_stop(self):
@@ -123,21 +145,33 @@ def read_journal(path):
     for n, rec in enumerate(records[1:], 2):
         _check_record(path, n, rec, steps)
         kind = rec.get("kind")
+        if kind in ("done", "move", "homing", "approach", "resume") or (kind == "refused" and rec.get("moved")):
+            state.moved = True
         if kind == "done":
             state.done.append(rec["step"])
             state.next_step = rec["step"] + 1
             state.next_move = 0
+            state.approach = None
         elif kind == "move":
             if rec["step"] == state.next_step:
                 state.next_move = rec["move"] + 1
+            state.approach = None
+        elif kind == "homing":
+            state.homing, state.approach = rec, None
+        elif kind == "approach":
+            state.approach = rec
         elif kind == "stop":
             state.stops.append(rec)
             state.epoch.append(rec)
+            at = rec.get("at") or {}
+            if at.get("step_index", 0) > 0 or at.get("move", 0) > 0:
+                state.moved = True      # a step's move was running
         elif kind in ("recover", "declared", "refused"):
             state.epoch.append(rec)
         elif kind == "resume":
             state.resumes.append(rec)
             state.epoch = []
+            state.homing = state.approach = None    # the resume re-established the position
             # --from-step moves the next step: steps from there on are to be wound again
             start = rec.get("from_step", state.next_step)
             state.done = [s for s in state.done if s < start]
@@ -176,6 +210,10 @@ _FIELDS = {
                 "position_wiped": (False, "bool", "true or false"),
                 "mpos": (False, "position", "null or a list of axis positions (numbers)"),
                 "position": (False, "position", "null or [ring_deg, head_mm]")},
+    "homing": {"from": (False, "position", "null or [ring_deg, head_mm]"),
+               "how": (False, "str", "a text")},
+    "approach": {"from": (False, "position", "null or [ring_deg, head_mm]"),
+                 "to": (False, "position", "null or [ring_deg, head_mm]")},
     "declared": {"position": (True, "position", "[ring_deg, head_mm]"),
                  "how": (False, "str", "a text")},
     "refused": {"error": (False, "str_or_null", "a text"),

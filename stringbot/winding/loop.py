@@ -115,14 +115,45 @@ class Winder:
         self._journal_broken = False
 
     # ---- the run ---------------------------------------------------------------------
-    def start(self, *, home):
-        """Identify the firmware, check alarms, home if asked, set modal state."""
+    def start(self, *, home, before_homing=None):
+        """Identify the firmware, check alarms, home if asked, set modal state.
+
+        ``before_homing()`` (when homing) makes sure homing starts from a safe position and
+        returns what it found (:func:`stringbot.winding.homing.check_before_homing`); that is
+        journaled as a ``homing`` record before the first homing line."""
         self.state = WindState.CONNECTING
         info = self.link.info if _identified(self.link) else self.link.identify()
         self.state = WindState.PREPARING
-        with self.stopping_on_ctrl_c("while preparing (homing)"):
+        with self.stopping("while preparing (homing)"):
+            if home and before_homing is not None:
+                checked = before_homing()
+                if self.journal is not None:
+                    self.journal.append({"kind": "homing", **checked})
             self.link.prepare(home=home)
         return info
+
+    @contextlib.contextmanager
+    def stopping(self, what):
+        """Around the moves before the winding proper (homing, the first moves): Ctrl-C stops the
+        machine; any stop is journaled (a ``stop`` record) so that the next run knows of it."""
+        try:
+            yield
+        except KeyboardInterrupt:
+            self.state = WindState.INTERRUPTED
+            status = None
+            try:
+                status = self.link.hold()
+            except (KeyboardInterrupt, MachineFailure) as exc:
+                log.warning("could not stop the machine cleanly: %s", exc)
+            self._stop_record("interrupted", f"interrupted {what}", status)
+            raise Interrupted(f"interrupted {what}: the machine is stopped; no step was wound meanwhile") from None
+        except Interrupted as exc:
+            self.state = WindState.INTERRUPTED
+            self._stop_record("interrupted", str(exc), None)
+            raise
+        except MachineFailure as exc:
+            self._failed(exc)
+            raise
 
     @contextlib.contextmanager
     def stopping_on_ctrl_c(self, what):
@@ -144,7 +175,7 @@ class Winder:
         self.state = WindState.WAITING
         if not self.confirm(message):
             self.state = WindState.INTERRUPTED
-            raise Interrupted("stopped by the operator before winding; nothing was moved")
+            raise Interrupted("stopped by the operator before winding")
 
     def wind(self, first=0, *, first_moves=None, finish=True):
         """Wind steps ``first``.. to the end; ``first_moves`` are what is left of step ``first``."""

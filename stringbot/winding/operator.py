@@ -27,6 +27,9 @@ class Operator:
         there is no terminal.
     say : callable(text) -> None, or None
         Show an instruction.
+    look : callable() -> (ring_deg, head_mm), or None
+        A dry run's simulated operator's eyes: where the simulated machine physically stands
+        (None: a person looks, and answers through the above).
     """
 
     head_side: str | None = None
@@ -34,6 +37,7 @@ class Operator:
     choose: Callable | None = None
     jog: Callable | None = None
     say: Callable | None = None
+    look: Callable | None = None
 
     @property
     def present(self):

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 from ..errors import BadInput, Interrupted, MachineFailure
 from ..motion.safety import gap_offset_deg
-from .locate import _point, locate, side_of, start_point, tolerance
+from .locate import _near, _on_segment, _point, locate, side_of, start_point, tolerance
 
 __all__ = ["Found", "recover_gcode", "Situation", "continue_point"]
 
@@ -57,16 +57,26 @@ class Found:
     lost: bool                  # the firmware had lost its position (or restarted)
     how: str                    # how the position was found, for the journal and the log
     on_path: bool = True        # ``here`` lies on the journal's path (else: a ring move with the head IN follows)
+    approach: bool = False      # before the first hook: the first moves (head IN, ring to the start) follow
 
 
 class Situation:
     """What the journal knows of the interrupted move ``m`` of step ``s``."""
 
-    def __init__(self, job, s, m):
+    def __init__(self, job, s, m, state=None):
         steps, machine = job.steps, job.machine
         self.steps, self.machine, self.s, self.m = steps, machine, s, m
-        if s >= len(steps):
+        # before the first step's moves: homing, or the first moves (the journal's own records)
+        self.phase = state.start_phase((s, m)) if state is not None else None
+        first = state.approach if self.phase == "approach" else None
+        self.jogged = first is not None and first.get("to") is None     # the operator was jogging
+        if first is not None and _valid(first.get("from")):
+            self.before = tuple(first["from"])
+            self.after = tuple(first["to"]) if _valid(first.get("to")) else self.before
+        elif s >= len(steps):
             self.before = self.after = _point(steps[-1].moves[-1])
+        elif self.phase is not None:
+            self.before = self.after = start_point(steps, 0, machine)
         else:
             moves = steps[s].moves
             self.before = _point(moves[m - 1]) if m > 0 else start_point(steps, s, machine)
@@ -92,6 +102,11 @@ class Situation:
         """What the machine was doing, in words."""
         if self.s >= len(self.steps):
             return "after the last pin"
+        if self.phase == "homing":
+            return f"homing (before the first pin, {self.pin})"
+        if self.phase == "approach":
+            what = "turning the ring" if not self.ring_known else "moving the head" if self.side is None else "standing"
+            return f"{what} to the start (before the first pin, {self.pin})"
         what = ("turning the ring" if not self.ring_known else
                 "moving the head" if self.side is None else "standing")
         return f"{what} (pin {self.pin}, step {self.s + 1}, move {self.m + 1})"
@@ -135,7 +150,7 @@ class GcodeRecovery:
     def __init__(self, link, job, state, s, m, operator, journal, from_step=None):
         self.link, self.job, self.state, self.op, self.journal = link, job, state, operator, journal
         self.machine, self.steps = job.machine, job.steps
-        self.sit = Situation(job, s, m)
+        self.sit = Situation(job, s, m, state)
         self.from_step = from_step
         self.moved = False
 
@@ -160,6 +175,12 @@ class GcodeRecovery:
         self.journal.append({"kind": "recover", **seen.as_record(), "position_wiped": wiped,
                              "position": [float(v) for v in here_fw] if here_fw else None})
         link.restore_modal()
+        if self.sit.phase is not None and self.from_step is None:
+            if self.sit.jogged or moved_before:
+                return self.guided("the machine was jogged at the start (before the first pin) and the host "
+                                   "does not know where it stands")
+            if self.sit.phase == "homing":
+                return self.home_again(here_fw)
         if not wiped:
             if here_fw is None:
                 raise MachineFailure("the machine reports no position; check the port and the machine")
@@ -184,7 +205,13 @@ class GcodeRecovery:
             return Found(here, (self.from_step - 1, 0), restarted, how, on_path=False)
         if sit.s >= len(self.steps):
             return Found(here, (len(self.steps), 0), restarted, how)
-        where = locate(here, self.steps, sit.s, sit.m, machine, tolerance(self.link, machine))
+        if sit.phase == "approach":             # on the first moves' path: they are made again from here
+            tol = tolerance(self.link, machine)
+            if _near(here, sit.before, tol) or _near(here, sit.after, tol) or \
+                    _on_segment(here, sit.before, sit.after, tol):
+                return Found(here, (0, 0), restarted, how, on_path=False)
+        where = None if sit.phase else locate(here, self.steps, sit.s, sit.m, machine,
+                                              tolerance(self.link, machine))
         if where is not None:
             return Found(here, where, restarted, how)
         return self.disagree(f"the machine reports ring {here[0]:.3f}, head {here[1]:.3f}, which is not on the "
@@ -278,9 +305,30 @@ class GcodeRecovery:
         where = continue_point(sit, hooked=hooked)
         return Found(here, where, True, "the head homed through the gap the ring stood at", on_path=False)
 
+    def home_again(self, here_fw):
+        """A stop while a start homed from a checked position (the journal's ``homing``): the head
+        went IN at the checked gap, or was IN, so homing again is safe; then the first moves."""
+        machine, link = self.machine, self.link
+        if machine["controller.homing"]:
+            return self.rehome()
+        start = self.state.homing.get("from")
+        ring = here_fw[0] if here_fw is not None else (start[0] if _valid(start) else None)
+        if ring is None:
+            return self.guided(f"the firmware lost its position while {self.sit.doing()}, and the ring's was "
+                               "never known")
+        self.moved = True
+        link.home(["head"])                 # a head switch only: the ring did not move
+        here = self.declare(ring, _home_head(machine), "the ring as before homing; the head homed")
+        return Found(here, (0, 0), True, "the head homed again", on_path=False)
+
     def rehome(self):
         """``homing``: home without taking the head across the pin circle away from a gap."""
         sit, machine, link = self.sit, self.machine, self.link
+        if self.from_step is not None:
+            # the machine may have been moved by hand since the stop: homing starts only from a
+            # position someone checked (the operator, or a dry run's simulated one)
+            from .homing import check_before_homing
+            check_before_homing(link, machine, self.op, vouched=False)
         home_ring = machine["controller.home_ring_deg"]
         h_in, h_out = machine["head.in_mm"], machine["head.out_mm"]
         turns = round((sit.before[0] - home_ring) / 360.0)
@@ -331,7 +379,10 @@ def recover_gcode(link, job, state, s, m, operator, journal, from_step=None):
     """One resume attempt's recovery; journals ``refused`` (and whether it moved anything) on failure."""
     rec = GcodeRecovery(link, job, state, s, m, operator, journal, from_step)
     try:
-        return rec.run()
+        found = rec.run()
+        if rec.sit.phase is not None and from_step is None and tuple(found.where) == (0, 0):
+            found.approach = True       # before the first hook: the first moves are made again
+        return found
     except (BadInput, MachineFailure, Interrupted) as exc:
         try:
             journal.append({"kind": "refused", "error": str(exc), "moved": rec.moved})

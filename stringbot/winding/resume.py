@@ -33,6 +33,7 @@ import math
 
 from ..errors import BadInput, MachineFailure
 from ..links import open_link
+from .approach import approach
 from .locate import TOL, _near, _point, _side, locate, start_point, tolerance  # noqa: F401
 from .operator import Operator
 from .recover import Found, recover_gcode
@@ -100,7 +101,8 @@ def _journal_point(state):
 
 
 def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=None, progress=None,
-                link_options=None, jog=None, say=None, spool_change=None, ask_thread=None, hands=None):
+                link_options=None, jog=None, say=None, spool_change=None, ask_thread=None, hands=None,
+                check=False, eyes=None):
     """Continue the winding of ``job`` from its journal (or restart at ``from_step``, from 1).
 
     ``head_side`` is the operator's statement (``--head-side``); ``confirm(question) -> bool``,
@@ -108,7 +110,10 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
     shows an instruction (None: nobody to ask, ``--yes``).  See :mod:`stringbot.winding.recover`.
     ``spool_change``, ``ask_thread``, ``hands``: a colour plan's spool changes, as for
     :func:`~stringbot.winding.session.wind_plan`; a resume after a stop for a spool change
-    (``--yes``) is the operator's word that the thread is on.
+    (``--yes``) is the operator's word that the thread is on.  ``eyes()``: a dry run's simulated
+    operator looking at its machine (:class:`~stringbot.winding.operator.Operator`'s ``look``).
+    A journal whose winding never moved the machine has nothing to resume: the winding starts
+    afresh (``check``: with the settings check, as :func:`~stringbot.winding.session.wind_plan`).
     """
     if job.dry_run:
         raise BadInput("a dry run's simulated machine lives only as long as its command, so there is "
@@ -122,10 +127,15 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
                        "(use --from-step N to wind steps again)")
     if from_step is not None and not 1 <= from_step <= len(steps):
         raise BadInput(f"--from-step is {from_step}; expected a step 1..{len(steps)}")
+    operator = Operator(head_side=head_side, confirm=confirm, choose=choose, jog=jog, say=say, look=eyes)
+    if from_step is None and not state.moved:
+        # nothing moved since the journal began (a start refused, or stopped, before any motion)
+        from .session import wind_plan
+        return wind_plan(job, confirm=confirm, progress=progress, link_options=link_options, check=check,
+                         spool_change=spool_change, ask_thread=ask_thread, hands=hands, operator=operator)
     s, m = _journal_point(state)
     if s < len(steps) and m >= len(steps[s].moves):
         s, m = s + 1, 0               # only the step's dwell was left: its moves are all done
-    operator = Operator(head_side=head_side, confirm=confirm, choose=choose, jog=jog, say=say)
     journal = Journal.reopen(job.journal_path, durable=not job.fresh_world)
     link = None
     try:
@@ -147,7 +157,10 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
         if from_step is None:
             for i in range(state.next_step, s2):
                 journal.done(i, steps[i].pin)   # executed, now known from the machine's position
-            if s2 < len(steps):
+            if s2 == 0 and k2 <= 1 and job.plan.is_mono:
+                winder.ask(f"Tie the thread on at pin {steps[0].pin} if it is not (the first of {len(steps)} "
+                           "pins; nothing is hooked yet), then go on?")
+            elif s2 < len(steps):
                 winder.ask(f"Resume at pin {steps[s2].pin} (step {s2 + 1} of {len(steps)}, move {k2 + 1})?")
         else:
             winder.ask(f"Restart from step {from_step} (pin {steps[s2].pin}); the steps from there on "
@@ -159,6 +172,11 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
                 if found.on_path and s2 < len(steps) else tuple(found.here)
         journal.append({"kind": "resume", "from_step": s2, "from_move": k2, "position_lost": found.lost,
                         "how": found.how})
+        if getattr(found, "approach", False):     # before the first hook: the first moves, again
+            with winder.stopping("while moving to the start"):
+                approach(link, machine, (steps[0].moves[0].ring_deg, machine["head.in_mm"]),
+                         tolerance(link, machine), journal=journal, op=operator)
+            link.here = start_point(steps, 0, machine)
         if s2 >= len(steps):
             return winder.wind(len(steps))
         return winder.wind(s2, first_moves=steps[s2].moves[k2:])

@@ -17,11 +17,13 @@ from ..links.settings_check import require_agreement
 from ..motion import hook_steps
 from ..planner import read_plan
 from .approach import approach
+from .homing import check_before_homing
 from .journal import Journal, journal_path_for, read_journal
 from .locate import tolerance
 from .loop import Winder
+from .operator import Operator
 
-__all__ = ["wind_plan", "Job", "load_job", "dry_run_problem"]
+__all__ = ["wind_plan", "Job", "load_job", "dry_run_problem", "UnfinishedJournal", "moved"]
 
 log = logging.getLogger(__name__)
 
@@ -114,6 +116,21 @@ def load_job(plan_path, machine_name, **kw):
     return Job(plan_path, load_machine(machine_name), **kw)
 
 
+class UnfinishedJournal(BadInput):
+    """A fresh start over a journal whose winding moved the machine and did not finish: only a
+    resume knows where it stands (the command line adds the exact resume command)."""
+
+
+def moved(job):
+    """The job's journal shows that the machine moved in a winding that did not finish (so a
+    fresh start, which trusts the firmware's position, is not exact: a resume is)."""
+    try:
+        state = read_journal(job.journal_path)
+    except BadInput:
+        return False
+    return state.moved and not state.finished
+
+
 def _new_journal(job):
     path = job.journal_path
     if path.exists() and not job.fresh_world:
@@ -121,17 +138,24 @@ def _new_journal(job):
             state = read_journal(path)
         except BadInput:
             state = None
-        if state is not None and state.done and not state.finished:
-            raise BadInput(f"journal {str(path)!r} shows {len(state.done)} of {state.steps_total} "
-                           "steps done: add --resume to continue that winding, or --from-step N "
-                           "to restart from step N")
+        if state is not None and state.moved and not state.finished:
+            done = (f"{len(state.done)} of {state.steps_total} steps done" if state.done else
+                    "no step done, but the machine moved (homing, or its first moves)")
+            raise UnfinishedJournal(
+                f"journal {str(path)!r} shows an unfinished winding ({done}); a new start would trust a "
+                "position the machine may have lost when it stopped: continue it with --resume (or restart "
+                "from step N with --from-step N)")
     return Journal.create(path, plan_path=job.plan_path, plan_sha256=job.plan.sha256(),
                           machine=job.machine.name, steps=len(job.steps), durable=not job.fresh_world)
 
 
 def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=False, spool_change=None,
-              ask_thread=None, hands=None):
+              ask_thread=None, hands=None, operator=None):
     """Wind ``job`` from its first step.
+
+    ``operator`` (an :class:`~stringbot.winding.operator.Operator`; default: ``confirm`` alone)
+    answers where the head stands before homing when the firmware cannot say
+    (:mod:`stringbot.winding.homing`) and, at a terminal, jogs a head OUT away from a gap IN.
 
     ``check`` (``stringbot wind`` sets it unless ``--no-check``): first compare
     the firmware's settings with the machine file
@@ -151,6 +175,7 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
     ------
     BadInput, MachineFailure, Interrupted
     """
+    op = operator if operator is not None else Operator(confirm=confirm)
     journal = _new_journal(job)
     link = None
     try:
@@ -159,8 +184,9 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
             require_agreement(link, job.machine)
         winder = Winder(link, job.steps, job.machine, journal=journal, progress=progress,
                         confirm=confirm)
-        winder.start(home=job.machine["controller.homing"]
-                     or bool(job.machine.values.get("controller.head_homing")))
+        home = job.machine["controller.homing"] or bool(job.machine.values.get("controller.head_homing"))
+        winder.start(home=home, before_homing=None if not hasattr(link, "jog") else
+                     lambda: check_before_homing(link, job.machine, op, journal=journal))
         first = job.steps[0]
         if job.plan.is_mono:
             winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
@@ -169,9 +195,9 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
             from .layers import threads_for
             winder.threads = threads_for(job, journal, confirm=confirm, spool_change=spool_change,
                                          ask_thread=ask_thread, hands=hands)
-        with winder.stopping_on_ctrl_c("while moving to the start"):
+        with winder.stopping("while moving to the start"):
             approach(link, job.machine, (first.moves[0].ring_deg, job.machine["head.in_mm"]),
-                     tolerance(link, job.machine))
+                     tolerance(link, job.machine), journal=journal, op=op)
         return winder.wind(0)
     finally:
         if link is not None:
