@@ -166,8 +166,8 @@ class _Asking:
             if isinstance(exc.__context__, EOFError):
                 click.echo("", err=True)          # end the question's line
                 raise BadInput("a question needs an answer but standard input ended (not a terminal): "
-                               "run in a terminal, or answer with --yes (and, on --resume, --head-side "
-                               "in|out after looking at the machine)") from None
+                               "run in a terminal, or answer with --yes (and --head-side in|out after "
+                               "looking at the machine, where it is asked: a resume, a start that homes)") from None
             raise
 
     def confirm(self, question):

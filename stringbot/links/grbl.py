@@ -255,7 +255,7 @@ class GrblLink(LineLink):
         if st.state == "Alarm":
             if not home:
                 raise self.fail("the machine is in alarm (it asks to be homed or unlocked); "
-                                "check it, then home it or unlock it ($X)")
+                                "check it, then unlock it ($X: nothing moves)")
         elif st.state not in ("Idle", "Check"):
             raise self.fail(f"the machine is not idle (state {st.state}); stop or reset it first")
         self._home_and_preamble(home, home_lines, preamble, self.motion_timeout)

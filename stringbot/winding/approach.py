@@ -56,7 +56,7 @@ def approach(link, machine, target, tol, *, journal=None, op=None):
             if off > machine.gap_tolerance_deg:
                 problem = (f"the machine reports the head OUT (head {head:.3f} mm) with the ring at {ring:.3f} "
                            f"deg, {off:.2f} deg from the nearest gap ({gap}|{(gap + 1) % machine.pins})")
-                if op is None or op.jog is None:
+                if op is None or op.jog is None or not hasattr(link, "jog"):
                     raise MachineFailure(f"{problem}: bringing it in there would hit a pin; turn the ring to a "
                                          "gap and bring the head IN by hand (or run without --yes in a terminal "
                                          "to be guided), then start again")

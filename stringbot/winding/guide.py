@@ -135,7 +135,10 @@ def guide_to_reference(rec, why):
     out_gap = g1 if sit.m == sit.approach + 1 else g2
     text = (f"Guided resume: {why}.  Bring the machine to a reference you can check by eye: the head IN, "
             f"and pin {pin} facing the head station.")
-    if sit.side != "in" and not last and rec.from_step is None:
+    if sit.phase is not None and rec.from_step is None:      # before the first hook: no hook's gap
+        text += ("  If the head is OUT, first turn the ring until a gap between two pins faces the head (the "
+                 "one it went out by), and bring the head IN through it (nowhere else: it would hit a pin).")
+    elif sit.side != "in" and not last and rec.from_step is None:
         text += (f"  If the head is OUT, first turn the ring until {sit.gap_text(out_gap)} faces the head, "
                  "and bring the head IN through it (nowhere else: it would hit a pin).")
     op.tell(text + "  Then " + JOG_HELP + ".")

@@ -110,12 +110,19 @@ def check_before_homing(link, machine, op, *, vouched=None, journal=None):
         if answer in ("in", "gap"):
             return {"from": None, "how": f"the operator: the head {'IN' if answer == 'in' else 'OUT at a gap'}"}
         _jogging(journal, None)
+        _unlock(link)
         bring_head_in(link, machine, op, "Before homing: the head is neither IN nor at a gap")
         return {"from": None, "how": "the operator jogged the head IN (guided)"}
     raise BadInput(f"before homing, the firmware cannot say where the machine stands ({why}), so only you "
                    "can say whether homing is safe (it brings the head IN first, across a pin if one is in "
                    "front of it): look, and if the head is IN add --head-side in; otherwise bring it IN by "
                    "hand through a gap, or run without --yes in a terminal to be guided")
+
+
+def _unlock(link):
+    """A GRBL in alarm takes no jog: unlock it first (``$X``: nothing moves)."""
+    if getattr(link, "unlock", None) is not None:
+        link.unlock()
 
 
 def _jogging(journal, here):
@@ -139,6 +146,7 @@ def _from_firmware(link, machine, op, here, journal=None):
                              "bring the head IN by hand (or run without --yes in a terminal to be guided), then "
                              "start again")
     _jogging(journal, here)
+    _unlock(link)
     jogs = bring_head_in(link, machine, op, f"Before homing: the machine reports {problem}")
     crossings(machine, here, jogs)              # a crossing away from a gap is refused
     now = link.position()

@@ -157,10 +157,8 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
         if from_step is None:
             for i in range(state.next_step, s2):
                 journal.done(i, steps[i].pin)   # executed, now known from the machine's position
-            if s2 == 0 and k2 <= 1 and job.plan.is_mono:
-                winder.ask(f"Tie the thread on at pin {steps[0].pin} if it is not (the first of {len(steps)} "
-                           "pins; nothing is hooked yet), then go on?")
-            elif s2 < len(steps):
+            first_hook = found.approach or (s2 == 0 and k2 <= 1 and job.plan.is_mono)
+            if s2 < len(steps) and not first_hook:      # (before the first hook: the tie-on, below)
                 winder.ask(f"Resume at pin {steps[s2].pin} (step {s2 + 1} of {len(steps)}, move {k2 + 1})?")
         else:
             winder.ask(f"Restart from step {from_step} (pin {steps[s2].pin}); the steps from there on "
@@ -172,11 +170,14 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
                 if found.on_path and s2 < len(steps) else tuple(found.here)
         journal.append({"kind": "resume", "from_step": s2, "from_move": k2, "position_lost": found.lost,
                         "how": found.how})
-        if getattr(found, "approach", False):     # before the first hook: the first moves, again
+        if found.approach:                  # before the first hook: the first moves, again
             with winder.stopping("while moving to the start"):
                 approach(link, machine, (steps[0].moves[0].ring_deg, machine["head.in_mm"]),
                          tolerance(link, machine), journal=journal, op=operator)
             link.here = start_point(steps, 0, machine)
+        if from_step is None and s2 == 0 and k2 <= 1 and job.plan.is_mono:
+            winder.ask(f"Tie the thread on at pin {steps[0].pin} if it is not (the first of {len(steps)} "
+                       "pins; nothing is hooked yet), then go on?")
         if s2 >= len(steps):
             return winder.wind(len(steps))
         return winder.wind(s2, first_moves=steps[s2].moves[k2:])

@@ -188,6 +188,10 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
         winder.start(home=home, before_homing=None if not hasattr(link, "jog") else
                      lambda: check_before_homing(link, job.machine, op, journal=journal))
         first = job.steps[0]
+        # to the start first (the head IN, then the ring), so the thread is tied on where it begins
+        with winder.stopping("while moving to the start"):
+            approach(link, job.machine, (first.moves[0].ring_deg, job.machine["head.in_mm"]),
+                     tolerance(link, job.machine), journal=journal, op=op)
         if job.plan.is_mono:
             winder.ask(f"Tie the thread on at pin {first.pin} (the first of {len(job.steps)} pins), "
                        "then go on?")
@@ -195,9 +199,6 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
             from .layers import threads_for
             winder.threads = threads_for(job, journal, confirm=confirm, spool_change=spool_change,
                                          ask_thread=ask_thread, hands=hands)
-        with winder.stopping("while moving to the start"):
-            approach(link, job.machine, (first.moves[0].ring_deg, job.machine["head.in_mm"]),
-                     tolerance(link, job.machine), journal=journal, op=op)
         return winder.wind(0)
     finally:
         if link is not None:
