@@ -33,6 +33,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from firmware_protocol.machine import load_machine  # noqa: E402
 from firmware_protocol.urlhandler import protocol_sim  # noqa: E402
+from matrix_user import homes  # noqa: E402
 from stringbot.errors import Interrupted, MachineFailure  # noqa: E402
 from stringbot.links import sim_url  # noqa: E402
 from stringbot.winding import Job, wind_plan  # noqa: E402
@@ -116,7 +117,7 @@ def kills(plan_path, plan_seq, name, n_kills, seed, workdir):
     try:
         while not pty.exists():
             time.sleep(0.05)
-        extra = []
+        extra = ["--head-side", "in"] if homes(name) else []     # just started: the operator says IN
         while True:
             runs += 1
             cmd = STRINGBOT + ["wind", str(plan_path), "--machine", name, "--port", str(pty), "--yes", "--force",

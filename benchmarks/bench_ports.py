@@ -22,6 +22,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 STRINGBOT = [sys.executable, "-c", "import sys; from stringbot.cli import main; main(sys.argv[1:])"]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from matrix_user import homes  # noqa: E402
 
 
 def plan_file(folder, pins):
@@ -38,7 +40,8 @@ def wind(plan, machine, url):
     journal = Path(str(plan) + f".{time.monotonic_ns()}.journal")
     t = time.monotonic()
     p = subprocess.run(STRINGBOT + ["wind", str(plan), "--machine", machine, "--port", url, "--yes",
-                                    "--journal", str(journal)], capture_output=True, text=True, timeout=3600)
+                                    "--journal", str(journal)] + (["--head-side", "in"] if homes(machine) else []),
+                       capture_output=True, text=True, timeout=3600)
     wall = time.monotonic() - t
     if p.returncode != 0:
         return f"failed (exit {p.returncode}): {p.stderr.strip().splitlines()[-1] if p.stderr.strip() else ''}"

@@ -28,8 +28,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from firmware_protocol.machine import load_machine  # noqa: E402
+from matrix_user import homes  # noqa: E402
 from stringbot.links import open_link, sim_url  # noqa: E402
 from stringbot.motion import hook_steps  # noqa: E402
 from stringbot.planner import read_plan  # noqa: E402
@@ -91,7 +93,8 @@ def pty_run(plan_path, plan, name, workdir, record=True):
             time.sleep(0.05)
         t = time.monotonic()
         done = subprocess.run(STRINGBOT + ["wind", str(plan_path), "--machine", name, "--port", str(pty),
-                                           "--yes", "--force", "--journal", str(Path(workdir) / f"pty-{name}-{record}.journal")],
+                                           "--yes", "--force", "--journal", str(Path(workdir) / f"pty-{name}-{record}.journal")]
+                              + (["--head-side", "in"] if homes(name) else []),     # the operator: head IN
                               capture_output=True, text=True)
         wall = time.monotonic() - t
     finally:

@@ -139,33 +139,40 @@ class Winder:
         try:
             yield
         except KeyboardInterrupt:
-            self.state = WindState.INTERRUPTED
-            status = None
-            try:
-                status = self.link.hold()
-            except (KeyboardInterrupt, MachineFailure) as exc:
-                log.warning("could not stop the machine cleanly: %s", exc)
-            self._stop_record("interrupted", f"interrupted {what}", status)
+            self._stop_record("interrupted", f"interrupted {what}", self._hold_quietly())
             raise Interrupted(f"interrupted {what}: the machine is stopped; no step was wound meanwhile") from None
         except Interrupted as exc:
-            self.state = WindState.INTERRUPTED
-            self._stop_record("interrupted", str(exc), None)
+            self._declined(exc)
             raise
         except MachineFailure as exc:
             self._failed(exc)
             raise
 
+    def _hold_quietly(self):
+        """Ctrl-C outside the winding proper: stop the machine (its status, or None)."""
+        self.state = WindState.INTERRUPTED
+        try:
+            return self.link.hold()
+        except (KeyboardInterrupt, MachineFailure) as exc:
+            log.warning("could not stop the machine cleanly: %s", exc)
+            return None
+
+    def _declined(self, exc):
+        """The operator stopped (a question declined, a guide quit), or the winding stopped for a
+        person (SpoolChange): the machine stands at rest where the last move ended; the stop record
+        keeps that measured position (after a reboot, e.g. an Uno's on open, it is the truth)."""
+        self.state = WindState.INTERRUPTED
+        layer = getattr(exc, "layer", None)
+        self._stop_record(getattr(exc, "reason", "interrupted"), str(exc), None,
+                          **({} if layer is None else {"layer": layer}))
+
     @contextlib.contextmanager
     def stopping_on_ctrl_c(self, what):
-        """Ctrl-C outside the winding proper (homing, recovering): stop the machine, then say so."""
+        """Ctrl-C outside the winding proper (recovering): stop the machine, then say so."""
         try:
             yield
         except KeyboardInterrupt:
-            self.state = WindState.INTERRUPTED
-            try:
-                self.link.hold()
-            except (KeyboardInterrupt, MachineFailure) as exc:
-                log.warning("could not stop the machine cleanly: %s", exc)
+            self._hold_quietly()
             raise Interrupted(f"interrupted {what}: the machine is stopped; no step was wound meanwhile") from None
 
     def ask(self, message):
@@ -200,14 +207,8 @@ class Winder:
                 self.link.finish()
         except KeyboardInterrupt:
             self._interrupted()
-        except Interrupted as exc:
-            # declined at a spool change, or stopped there for a person (SpoolChange): the machine
-            # stands at rest where the last step ended; the stop record keeps that measured position
-            # (after a reboot, e.g. an Uno's on open, it is the truth)
-            self.state = WindState.INTERRUPTED
-            layer = getattr(exc, "layer", None)
-            self._stop_record(getattr(exc, "reason", "interrupted"), str(exc), None,
-                              **({} if layer is None else {"layer": layer}))
+        except Interrupted as exc:          # declined at a spool change, or stopped there for a person
+            self._declined(exc)
             raise
         except MachineFailure as exc:
             self._failed(exc)

@@ -30,6 +30,13 @@ was measured, then switches, and only then the operator:
      (:mod:`stringbot.winding.guide`) when the ring was turning.  ``--yes``
      alone never answers.
 
+Before the first hook (a stop while a start homed, or in its first moves: the
+journal's ``homing`` and ``approach`` records, with no step move since) the path
+is the start's own: homing again (it began from a position checked safe), the
+first moves made again from a position found on them, or -- the position lost
+without switches -- the operator, as above; then the start goes on as a new one
+would (:attr:`Found.approach`).
+
 Every attempt journals what it learned (``recover``) before it asks or refuses,
 every declaration (``declared``) and every refusal (``refused``, and whether
 anything moved), so that the next attempt starts from what is known and no
