@@ -55,7 +55,7 @@ def in_process(plan, machine, runs, folder):
             url = sim_url(machine, record=folder / f"{machine}-{i}-{check}.json")
             job = Job(plan, m, port=url, journal=folder / f"{machine}-{i}-{check}.journal")
             t0 = time.perf_counter()
-            wind_plan(job, confirm=None, check=check)
+            wind_plan(job, confirm=None, check=check, eyes=lambda: protocol_sim.look(url))
             out[check].append(time.perf_counter() - t0)
             protocol_sim.forget(url)
         url = sim_url(machine, record=folder / f"{machine}-{i}-alone.json")

@@ -142,7 +142,8 @@ def line_table(plan_path, machine):
     try:
         wind_plan(Job(plan_path, load_machine(machine), port=url,
                       journal=Path(plan_path).with_suffix(".probe.journal")), confirm=None,
-                  check=True)                 # as the command does: the settings check's lines count
+                  check=True,                 # as the command does: the settings check's lines count
+                  eyes=lambda: protocol_sim.look(url))     # the head IN: as the operator says
     finally:
         GcodeFirmware._line_faults = orig
         protocol_sim.forget(url)

@@ -30,10 +30,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "tests"))
 
 from firmware_protocol.machine import load_machine  # noqa: E402
 from firmware_protocol.urlhandler import protocol_sim  # noqa: E402
 from matrix_user import homes  # noqa: E402
+from test_wind_sim import eyes_at  # noqa: E402
 from stringbot.errors import Interrupted, MachineFailure  # noqa: E402
 from stringbot.links import sim_url  # noqa: E402
 from stringbot.winding import Job, wind_plan  # noqa: E402
@@ -50,7 +52,7 @@ def one_fault(plan_path, name, kind, n, workdir):
     job = Job(plan_path, load_machine(name), port=url, journal=Path(workdir) / f"j-{name}-{kind}-{n}")
     world = None
     stops, head_out_at_stop = 0, False
-    run = lambda: wind_plan(job, confirm=None)           # noqa: E731
+    run = lambda: wind_plan(job, confirm=None, eyes=eyes_at(job.url))           # noqa: E731
     for _ in range(12):
         try:
             run()

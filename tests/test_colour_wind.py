@@ -14,6 +14,7 @@ from stringbot.winding.resume import resume_plan
 
 from planner_helpers import for_machine
 from test_colour_plan import colour_plan
+from test_wind_sim import eyes_at
 
 MACHINES = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring", "dynamixel-ring"]
 
@@ -58,7 +59,7 @@ def test_the_operator_is_asked_for_each_thread_at_its_pin(tmp_path):
     job = Job(path, load_machine("grbl-ring"), port=sim_url("grbl-ring", record=record),
               journal=tmp_path / "c.journal")
     asked = []
-    wind_plan(job, confirm=lambda q: asked.append(q) or True, hands=hands_at(job.url))
+    wind_plan(job, confirm=lambda q: asked.append(q) or True, hands=hands_at(job.url), eyes=eyes_at(job.url))
     assert len(asked) == 3
     for k, (q, lay) in enumerate(zip(asked, plan.layers)):
         assert lay.color in q and f"at pin {lay.sequence[0]}" in q and f"layer {k + 1} of 3" in q
@@ -109,7 +110,7 @@ def test_resume_inside_layer_2_never_asks_for_layer_1(tmp_path):
         return True
 
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=confirm, link_options={"response_timeout": 1.0}, hands=hands_at(job.url))
+        wind_plan(job, confirm=confirm, link_options={"response_timeout": 1.0}, hands=hands_at(job.url), eyes=eyes_at(job.url))
     state = read_journal(job.journal_path)
     assert plan.layer_starts[1] < state.next_step < plan.layer_starts[2]     # stopped inside layer 2
     assert [r["layer"] for r in state.layers] == [0, 1]
@@ -128,7 +129,7 @@ def test_operator_declining_at_a_spool_change_then_resume_asks_for_that_thread(t
     job, plan, record = make_job(tmp_path, None)
     answers = iter([True, False])            # layer 1 yes; at the change to layer 2: not yet
     with pytest.raises(Interrupted, match="spool change before step 7"):
-        wind_plan(job, confirm=lambda q: next(answers), hands=hands_at(job.url))
+        wind_plan(job, confirm=lambda q: next(answers), hands=hands_at(job.url), eyes=eyes_at(job.url))
     state = read_journal(job.journal_path)
     assert state.next_step == plan.layer_starts[1] and [r["layer"] for r in state.layers] == [0]
     asked = []

@@ -19,7 +19,7 @@ from stringbot.winding import Job, read_journal, wind_plan
 from stringbot.winding.resume import resume_plan, status_lines
 
 from scripted_operator import ScriptedOperator, world_looker
-from test_wind_sim import small_plan
+from test_wind_sim import eyes_at, small_plan
 
 
 def make_job(tmp_path, name, faults, n=12, seed=3):
@@ -74,7 +74,7 @@ def wind_to_the_end(job, record, first=None, max_runs=10, tried=None):
     stops = 0
     fast = {"response_timeout": 1.0}
     tried = [] if tried is None else tried
-    run = first or (lambda: wind_plan(job, confirm=None, link_options=fast))
+    run = first or (lambda: wind_plan(job, confirm=None, link_options=fast, eyes=eyes_at(job.url)))
     for _ in range(max_runs):
         try:
             run()
@@ -121,7 +121,7 @@ def test_ctrl_c_then_resume(tmp_path, name, at_step):
         if p.done == at_step:
             raise KeyboardInterrupt
     with pytest.raises(Interrupted, match="stopped"):
-        wind_plan(job, confirm=None, progress=progress)
+        wind_plan(job, confirm=None, progress=progress, eyes=eyes_at(job.url))
     state = read_journal(job.journal_path)
     assert state.last_stop["reason"] == "interrupted"
     assert any("steps done" in line for line in status_lines(job))
@@ -132,7 +132,7 @@ def test_ctrl_c_then_resume(tmp_path, name, at_step):
 def test_journal_for_another_plan_or_machine_is_refused(tmp_path):
     job, plan, record = make_job(tmp_path, "grbl-ring", "disconnect@30")
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=None)
+        wind_plan(job, confirm=None, eyes=eyes_at(job.url))
     other = Job(job.plan_path, load_machine("grblhal-ring"), port=job.url, journal=job.journal_path)
     with pytest.raises(BadInput, match="machine 'grbl-ring'"):
         resume_plan(other, confirm=None)
@@ -144,7 +144,7 @@ def test_journal_for_another_plan_or_machine_is_refused(tmp_path):
 
 def test_from_step_rewinds_from_a_chosen_step(tmp_path):
     job, plan, record = make_job(tmp_path, "grbl-ring", None, n=8)
-    wind_plan(job, confirm=None)
+    wind_plan(job, confirm=None, eyes=eyes_at(job.url))
     asked = []
     resume_plan(job, from_step=6, confirm=lambda q: asked.append(q) or True)
     assert any("Restart from step 6" in q for q in asked)

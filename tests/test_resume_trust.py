@@ -18,7 +18,7 @@ from stringbot.winding.resume import resume_plan
 
 from scripted_operator import ScriptedOperator, world_looker
 from test_resume_sim import check_world, head_side_from_world, make_job
-from test_wind_sim import small_plan
+from test_wind_sim import eyes_at, small_plan
 
 FAST = {"response_timeout": 1.0}
 
@@ -37,7 +37,7 @@ def test_yes_never_answers_where_the_head_is_and_refusals_never_lock_out(tmp_pat
     wiped 0,0 it reads now that the alarm is gone; --head-side (after looking) then finishes."""
     job, plan, record = make_job(tmp_path, "grbl-ring", "power@15")
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=None, link_options=FAST)
+        wind_plan(job, confirm=None, link_options=FAST, eyes=eyes_at(job.url))
     assert world(job).head_out                                   # stopped mid-hook, the head OUT
     for _ in range(2):
         with pytest.raises(BadInput, match="--head-side in or --head-side out"):
@@ -57,7 +57,7 @@ def test_yes_never_answers_where_the_head_is_and_refusals_never_lock_out(tmp_pat
 def test_a_head_side_that_contradicts_the_machines_report_is_refused(tmp_path):
     job, plan, record = make_job(tmp_path, "grbl-ring", "disconnect@15")
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=None, link_options=FAST)
+        wind_plan(job, confirm=None, link_options=FAST, eyes=eyes_at(job.url))
     wrong = "in" if head_side_from_world(job.url) == "out" else "out"
     moves = world(job).moves
     with pytest.raises(BadInput, match=f"--head-side {wrong} contradicts the machine's own report"):
@@ -71,7 +71,7 @@ def test_a_head_side_that_contradicts_the_journal_is_refused(tmp_path):
     """A power loss while the ring turned behind a pin (the head OUT): 'in' cannot be true."""
     job, plan, record = make_job(tmp_path, "grbl-ring", "power@21")
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=None, link_options=FAST)
+        wind_plan(job, confirm=None, link_options=FAST, eyes=eyes_at(job.url))
     with pytest.raises(BadInput, match="--head-side in contradicts the journal: the head was OUT"):
         resume_plan(job, confirm=None, head_side="in", link_options=FAST)
 
@@ -80,7 +80,7 @@ def test_a_head_side_that_contradicts_the_journal_is_refused(tmp_path):
 def test_the_ring_lost_while_turning_needs_the_operator_and_the_guide_finds_it(tmp_path, n):
     job, plan, record = make_job(tmp_path, "grbl-ring", f"power@{n}")
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=None, link_options=FAST)
+        wind_plan(job, confirm=None, link_options=FAST, eyes=eyes_at(job.url))
     with pytest.raises(BadInput, match="without --yes, in a terminal: it guides you"):
         resume_plan(job, confirm=None, head_side=head_side_from_world(job.url), link_options=FAST)
     op = ScriptedOperator(job.machine, world_looker(lambda: world(job)))
@@ -97,7 +97,7 @@ def test_a_guided_head_brought_in_through_the_wrong_gap_is_refused(tmp_path):
     attempt guides again (the journal's path no longer describes the machine)."""
     job, plan, record = make_job(tmp_path, "grbl-ring", "power@21")
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=None, link_options=FAST)
+        wind_plan(job, confirm=None, link_options=FAST, eyes=eyes_at(job.url))
     op = ScriptedOperator(job.machine, world_looker(lambda: world(job)))
     say = op.say
 
@@ -122,7 +122,7 @@ def test_a_measured_stop_position_is_the_truth_after_a_reboot(tmp_path):
         if p.done == 4:
             raise KeyboardInterrupt
     with pytest.raises(Interrupted):
-        wind_plan(job, confirm=None, progress=progress, link_options=FAST)
+        wind_plan(job, confirm=None, progress=progress, link_options=FAST, eyes=eyes_at(job.url))
     stop = read_journal(job.journal_path).last_stop
     assert stop["position"] is not None
     emu = protocol_sim.session(job.url).emulator
@@ -163,7 +163,7 @@ def test_a_head_switch_alone_makes_a_resume_after_a_head_move_automatic(tmp_path
     url = sim_url(str(path), record=record, faults=f"power@{n}")
     job = Job(tmp_path / "plan.json", machine, port=url, journal=tmp_path / "j")
     with pytest.raises(MachineFailure):
-        wind_plan(job, confirm=None, link_options=FAST)
+        wind_plan(job, confirm=None, link_options=FAST, eyes=eyes_at(job.url))
     try:
         resume_plan(job, confirm=None, link_options=FAST)
     except BadInput as exc:                   # a ring move was running: the switch cannot help

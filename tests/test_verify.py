@@ -17,7 +17,7 @@ from stringbot.motion import hook_steps
 from stringbot.winding import Journal, Winder, read_journal
 
 from planner_helpers import for_machine
-from test_wind_sim import EmulatorPort, small_plan
+from test_wind_sim import EmulatorPort, eyes_at, small_plan
 
 
 class SkippingGrbl(GrblEmulator):
@@ -121,7 +121,7 @@ def test_the_first_move_brings_the_head_in_alone_then_turns_the_ring(tmp_path):
     opened = session.open_link
     session.open_link = lambda *a, **k: link
     try:
-        wind_plan(job, confirm=None)
+        wind_plan(job, confirm=None, eyes=eyes_at(job.url))
     finally:
         session.open_link = opened
     assert world.collisions == []

@@ -19,6 +19,13 @@ from stringbot.winding import Journal, Winder, read_journal
 GCODE_MACHINES = ["grbl-ring", "grblhal-ring", "marlin-ring"]
 
 
+def eyes_at(url):
+    """An in-process simulated machine's operator, looking at it: where its world's ring and head
+    stand (what a start that homes asks when the firmware cannot say)."""
+    from firmware_protocol.urlhandler import protocol_sim
+    return lambda: protocol_sim.look(url)
+
+
 def small_plan(pins=300, sequence=None, seed=1, n=24):
     a = np.arange(pins) * 2 * np.pi / pins
     xy = np.stack([0.5 + 0.5 * np.sin(a), 0.5 - 0.5 * np.cos(a)], axis=1)

@@ -150,10 +150,11 @@ def _new_journal(job):
 
 
 def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=False, spool_change=None,
-              ask_thread=None, hands=None, operator=None):
+              ask_thread=None, hands=None, operator=None, eyes=None):
     """Wind ``job`` from its first step.
 
-    ``operator`` (an :class:`~stringbot.winding.operator.Operator`; default: ``confirm`` alone)
+    ``operator`` (an :class:`~stringbot.winding.operator.Operator`; default: ``confirm`` alone,
+    with ``eyes()`` -> ``(ring_deg, head_mm)`` a simulated operator's look at its machine)
     answers where the head stands before homing when the firmware cannot say
     (:mod:`stringbot.winding.homing`) and, at a terminal, jogs a head OUT away from a gap IN.
 
@@ -175,7 +176,7 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
     ------
     BadInput, MachineFailure, Interrupted
     """
-    op = operator if operator is not None else Operator(confirm=confirm)
+    op = operator if operator is not None else Operator(confirm=confirm, look=eyes)
     journal = _new_journal(job)
     link = None
     try:
