@@ -19,6 +19,7 @@ import serial
 
 from stringbot.planner import write_plan
 
+from planner_helpers import for_machine
 from test_wind_sim import small_plan
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -30,22 +31,28 @@ pytestmark = pytest.mark.timeout(300)
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    """An 8-step plan, and per machine the line numbers of its first moves (a fault-free probe)."""
+    """An 8-step plan (made for each machine's thread), and per machine the line numbers of its
+    first moves (a fault-free probe)."""
     work = tmp_path_factory.mktemp("advice")
     plan = small_plan(n=8, seed=41)
-    write_plan(plan, work / "plan.json")
     cache = {}
+
+    def plan_for(machine):
+        path = work / f"plan-{machine}.json"
+        if not path.exists():
+            write_plan(for_machine(plan, machine), path)
+        return path
 
     def first(machine):
         """{"home": line, "first": line, "ring": [lines of ring moves with the head IN]}"""
         if machine not in cache:
-            table = fm.line_table(work / "plan.json", machine)
+            table = fm.line_table(plan_for(machine), machine)
             cache[machine] = fm.first_points(table, machine)
             ring_ax = "X" if machine == "grbl-ring" else "A"
             cache[machine]["ring"] = [n for n, text, side in table if side == "in" and text.startswith("G1 ")
                                       and text.split()[1][0] == ring_ax]
         return cache[machine]
-    return work, plan, first
+    return work, plan, first, plan_for
 
 
 def last_error(err):
@@ -58,13 +65,14 @@ class Machine:
     """One simulated machine in its own process and the commands a user types at it."""
 
     def __init__(self, tmp_path, tiny, machine, faults=""):
-        self.work, self.plan, _ = tiny
+        self.work, self.plan, _, plan_for = tiny
+        self.plan_path = plan_for(machine)
         self.machine, self.tmp = machine, tmp_path
         self.pty, self.record, self.journal = tmp_path / "pty", tmp_path / "rec.json", tmp_path / "j.journal"
         self.sim = Simulator(machine, self.pty, self.record, faults)
 
     def args(self, *extra, yes=True):
-        return (["wind", str(self.work / "plan.json"), "--machine", self.machine, "--port", str(self.pty),
+        return (["wind", str(self.plan_path), "--machine", self.machine, "--port", str(self.pty),
                  "--journal", str(self.journal)] + (["--yes"] if yes else []) + list(extra))
 
     def wind(self, *extra):

@@ -142,6 +142,9 @@ def test_host_killed_with_sigkill_then_resume(tmp_path, sim_factory):
         cmd = STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring", "--port",
                            str(sim.pty), "--yes", "--journal", str(journal)] + resume
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 60                 # a busy machine: the delay counts from the journal
+        while not journal.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
         try:
             proc.wait(timeout=delay)
         except subprocess.TimeoutExpired:
