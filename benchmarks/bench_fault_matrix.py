@@ -364,6 +364,9 @@ def build_cases(workdir, machines, kinds, n_points, kills, seed, plan_for):
                 for i in range(n_points):
                     s = 1 + (steps - 2) * (i + 1) // (n_points + 1)
                     cases.append(Case(name, name, kind, f"{kind}@{4 * s + 1 + i % 4}"))
+            if "first-power" in kinds:          # the first moves: to the start, the first ring move
+                for n in (1, 2):
+                    cases.append(Case(name, name, "first-power", f"power@{n}", "first"))
         else:
             table = line_table(plan, name)
             for kind in (k for k in LINE_KINDS if k in kinds):
