@@ -75,7 +75,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from matrix_user import (  # noqa: E402
     DISPLACEMENTS, STRINGBOT, Simulator, _done, _sigint_default, clear_side, displacement, homes, run_guided,
-    run_host, type_lines)
+    run_host, type_lines, wait_event)
 
 GCODE = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring"]
 LINE_KINDS = ["garble", "error", "drop-ok", "reset", "power", "disconnect", "reboot"]
@@ -234,6 +234,8 @@ def run_case(case, plan_path, seq, workdir, *, timeout=120.0, max_runs=10, seed=
         extra, yes, repeats, last_msg = [], True, 0, None
         if case.setup:              # a person left the machine off its start, in a terminal program
             type_lines(pty, displacement(case.machine, case.setup), then=case.then or None)
+            if case.then:           # the power went: wait for it to come back, as a person does
+                wait_event(record, "power on")
             log.append(f"(typed before winding: {' / '.join(displacement(case.machine, case.setup))}"
                        + (f" / {case.then}" if case.then else "") + ")")
         elif homes(case.machine):   # just powered up with the head IN: the operator says so

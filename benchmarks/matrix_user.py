@@ -249,6 +249,20 @@ def type_lines(pty, lines, *, then=None, timeout=30.0):
             pass
 
 
+def wait_event(record, event, timeout=30.0):
+    """Wait until the simulator's record shows ``event`` (e.g. ``"power on"``): a person waits for the
+    machine to come back before they type or wind again."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            if any(e.get("event") == event for e in json.loads(Path(record).read_text()).get("events", [])):
+                return True
+        except (OSError, ValueError):
+            pass
+        time.sleep(0.05)
+    return False
+
+
 def homes(machine):
     from firmware_protocol.machine import load_machine
     m = load_machine(machine)

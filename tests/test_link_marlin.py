@@ -166,7 +166,8 @@ def test_a_marlin_that_stops_sending_keepalives_is_declared_unresponsive(tmp_pat
                 break
             time.sleep(0.05)
         wind = subprocess.run(cli + ["wind", str(tmp_path / "plan.json"), "--machine", "marlin-ring", "--port",
-                                     str(pty), "--yes", "--no-check"], capture_output=True, text=True, timeout=300)
+                                     str(pty), "--yes", "--no-check", "--head-side", "in"],   # it homes
+                              capture_output=True, text=True, timeout=300)
     finally:
         sim.send_signal(signal.SIGINT)
         sim.communicate(timeout=10)

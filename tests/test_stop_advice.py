@@ -24,7 +24,7 @@ from test_wind_sim import small_plan
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import bench_fault_matrix as fm  # noqa: E402
-from matrix_user import STRINGBOT, Simulator, run_guided, run_host, type_lines  # noqa: E402
+from matrix_user import STRINGBOT, Simulator, run_guided, run_host, type_lines, wait_event  # noqa: E402
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -212,6 +212,8 @@ def test_homing_where_the_firmware_cannot_say_asks_the_operator_never_yes(tiny, 
     m = Machine(tmp_path / "m", tiny, machine_name, f"power@{len(lines) + 1}" if power else "")
     try:
         type_lines(m.pty, lines, then="G4 P0" if power else None)
+        if power:
+            assert wait_event(m.record, "power on")          # the machine comes back
         rc, line, _ = m.wind()
         assert rc == 2 and "before homing, the firmware cannot say" in line and "--head-side in" in line
         assert m.world()["collisions"] == []
