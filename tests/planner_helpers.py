@@ -12,6 +12,21 @@ def picture(gray):
                    {"path": "synthetic", "sha256": "0" * 64, "width": n, "height": n}, "gray")
 
 
+def plan_files(folder, plan):
+    """``plan_for(machine)``: the path of ``plan`` made for that machine's thread (written once, in
+    ``folder``)."""
+    from pathlib import Path
+
+    from stringbot.planner import write_plan
+
+    def plan_for(machine):
+        path = Path(folder) / f"plan-{Path(machine).stem}.json"
+        if not path.exists():
+            write_plan(for_machine(plan, machine), path)
+        return path
+    return plan_for
+
+
 def for_machine(plan, machine):
     """``plan`` as ``stringbot plan --machine`` makes it: the machine's ring diameter and thread (a plan
     for another thread-to-diameter ratio is refused by wind, gcode, pins and estimate).  Returns it."""

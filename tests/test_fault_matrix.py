@@ -16,9 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from stringbot.planner import write_plan
 
-from planner_helpers import for_machine
+from planner_helpers import plan_files
 from test_wind_sim import small_plan
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -32,12 +31,7 @@ def tiny(tmp_path_factory):
     work = tmp_path_factory.mktemp("matrix")
     plan = small_plan(n=10, seed=31)
     cache = {}
-
-    def plan_for(machine):
-        path = work / f"plan-{Path(machine).stem}.json"
-        if not path.exists():
-            write_plan(for_machine(plan, machine), path)
-        return path
+    plan_for = plan_files(work, plan)
 
     def points(machine, wanted):
         if machine not in cache:

@@ -17,9 +17,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from stringbot.planner import write_plan
-
-from planner_helpers import for_machine
+from planner_helpers import plan_files
 from test_wind_sim import small_plan
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -36,12 +34,7 @@ def tiny(tmp_path_factory):
     work = tmp_path_factory.mktemp("advice")
     plan = small_plan(n=8, seed=41)
     cache = {}
-
-    def plan_for(machine):
-        path = work / f"plan-{machine}.json"
-        if not path.exists():
-            write_plan(for_machine(plan, machine), path)
-        return path
+    plan_for = plan_files(work, plan)
 
     def first(machine):
         """{"home": line, "first": line, "ring": [lines of ring moves with the head IN]}"""
