@@ -172,3 +172,23 @@ def test_a_busy_port_exits_2(tmp_path, plan_path, capsys):
         dev.close()
     assert code == 2, err
     assert "busy" in error_lines(err)[0]
+
+
+@pytest.mark.parametrize("port, expected", [
+    ("rfc2217://127.0.0.1:1", 2),                               # nothing listens there
+    ("sim://?machine=grbl-ring&set=$100=40", 1),                # a firmware that disagrees
+])
+def test_a_start_that_cannot_begin_leaves_the_last_journal_as_it_was(tmp_path, plan_path, capsys, port, expected):
+    """The journal of a finished winding is what keeps `plan -o` from replacing a wound plan: a
+    start whose port does not open, or whose machine disagrees with its file, must not replace it."""
+    journal = tmp_path / "plan.journal"
+    code, _, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes", "--journal", str(journal)],
+                       capsys)
+    assert code == 0, err
+    before = journal.read_bytes()
+    assert b'"finished"' in before
+    code, _, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes", "--journal", str(journal),
+                        "--port", port], capsys)
+    assert code == expected, err
+    assert "Traceback" not in err
+    assert journal.read_bytes() == before

@@ -131,7 +131,8 @@ def moved(job):
     return state.moved and not state.finished
 
 
-def _new_journal(job):
+def _refuse_unfinished(job):
+    """Refuse a fresh start over a journal whose winding moved the machine and did not finish."""
     path = job.journal_path
     if path.exists() and not job.fresh_world:
         try:
@@ -145,7 +146,10 @@ def _new_journal(job):
                 f"journal {str(path)!r} shows an unfinished winding ({done}); a new start would trust a "
                 "position the machine may have lost when it stopped: continue it with --resume (or restart "
                 "from step N with --from-step N)")
-    return Journal.create(path, plan_path=job.plan_path, plan_sha256=job.plan.sha256(),
+
+
+def _new_journal(job):
+    return Journal.create(job.journal_path, plan_path=job.plan_path, plan_sha256=job.plan.sha256(),
                           machine=job.machine.name, steps=len(job.steps), durable=not job.fresh_world)
 
 
@@ -177,12 +181,15 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
     BadInput, MachineFailure, Interrupted
     """
     op = operator if operator is not None else Operator(confirm=confirm, look=eyes)
-    journal = _new_journal(job)
-    link = None
+    _refuse_unfinished(job)
+    journal = link = None
     try:
         link = open_link(job.url, job.machine, **(link_options or {}))
         if check:
             require_agreement(link, job.machine)
+        # the journal is written once the machine is there and agrees: a port that does not open or
+        # a machine that disagrees leaves the journal of an earlier winding as it was
+        journal = _new_journal(job)
         winder = Winder(link, job.steps, job.machine, journal=journal, progress=progress,
                         confirm=confirm)
         home = job.machine["controller.homing"] or bool(job.machine.values.get("controller.head_homing"))
@@ -204,7 +211,8 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
     finally:
         if link is not None:
             link.close()
-        journal.close()
+        if journal is not None:
+            journal.close()
 
 
 def dry_run_problem(job):
