@@ -32,7 +32,7 @@ __all__ = [
     "SOFT_LIMITS", "HOMING", "ROTARY_AXES", "ROTARY_WRAP", "axis_setting", "setting_label",
     "parse_setting_line", "parse_settings", "setting_line", "number",
     "MARLIN_REPORTS", "MarlinSettings", "marlin_words", "m503_lines", "parse_m503",
-    "ServoSetting", "parse_servo_setting", "Preset", "parse_preset", "PRESET_FORMS",
+    "ServoSetting", "parse_servo_setting", "Preset", "parse_preset", "PRESET_FORMS", "PRESET_EXAMPLES",
 ]
 
 AXES = "XYZABC"
@@ -235,13 +235,24 @@ def parse_servo_setting(text):
 
 # ---- presets: the --set forms ------------------------------------------------------------------------
 
+#: A ``--set`` each kind of firmware takes (one that mis-sets its bundled machine).
+PRESET_EXAMPLES = {
+    "grbl": "$100=40",
+    "grblhal": "$103=80",
+    "fluidnc": "$100=40",
+    "marlin": "M92 A40",
+    "dynamixel": "ring:Drive Mode=1",
+}
+
 #: What ``--set`` takes, per kind of firmware.
 PRESET_FORMS = {
-    "grbl": "'$N=VALUE' (e.g. '$100=40')",
-    "grblhal": "'$N=VALUE' (e.g. '$103=80')",
-    "marlin": "'M92|M203|M201|M204|M211 WORDS' (e.g. 'M92 A40')",
-    "dynamixel": f"'{_SERVO_FORM}' (e.g. 'ring:Drive Mode=1')",
+    "grbl": "'$N=VALUE'",
+    "grblhal": "'$N=VALUE'",
+    "fluidnc": "'$N=VALUE' (GRBL's numbers for the items of config.yaml)",
+    "marlin": "'M92|M203|M201|M204|M211 WORDS'",
+    "dynamixel": f"'{_SERVO_FORM}'",
 }
+PRESET_FORMS = {kind: f"{form} (e.g. '{PRESET_EXAMPLES[kind]}')" for kind, form in PRESET_FORMS.items()}
 
 _MARLIN_SETTERS = ("M92", "M203", "M201", "M204", "M211")
 
@@ -256,7 +267,7 @@ class Preset:
 
 
 def parse_preset(kind, text):
-    """One ``--set`` for a ``kind`` of firmware (``grbl``, ``grblhal``, ``marlin``, ``dynamixel``).
+    """One ``--set`` for a ``kind`` of firmware (``grbl``, ``grblhal``, ``fluidnc``, ``marlin``, ``dynamixel``).
 
     Raises
     ------
@@ -265,7 +276,7 @@ def parse_preset(kind, text):
     """
     text = text.strip()
     form = PRESET_FORMS[kind]
-    if kind in ("grbl", "grblhal"):
+    if kind in ("grbl", "grblhal", "fluidnc"):
         got = parse_setting_line(text)
         if got is None or isinstance(got[1], str):
             raise ValueError(f"--set {text!r}: expected {form}")

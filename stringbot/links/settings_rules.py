@@ -43,6 +43,9 @@ PERSISTENCE = {
     "grbl": "GRBL writes each setting to its EEPROM at once: it stays after a reset or a power cycle",
     "grblhal": "grblHAL writes each setting to its non-volatile storage at once: it stays after a reset "
                "or a power cycle",
+    "fluidnc": "FluidNC applies a numbered $ setting to the configuration it runs (the matching item of "
+               "config.yaml, e.g. axes/a/steps_per_mm): put the same value in config.yaml to keep it after "
+               "a restart",
     "marlin": "Marlin keeps M92/M203/M201/M204 in RAM until M500 (sent last) stores them in EEPROM; "
               "M211 S0 lasts until the next reset",
     "dynamixel": "Drive Mode, Velocity Limit and the Position Limits are EEPROM items the servo keeps "
