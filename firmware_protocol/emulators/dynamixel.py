@@ -52,7 +52,7 @@ from firmware_protocol import dynamixel as dx
 from firmware_protocol.emulators.base import Emulator
 from firmware_protocol.emulators.dynamixel_servo import FIRMWARE_VERSION, Power, XServo
 
-__all__ = ["DynamixelEmulator", "XServo", "Fault", "parse_faults", "Power"]
+__all__ = ["DynamixelEmulator", "XServo", "Fault", "FaultKind", "FAULT_ALIASES", "parse_faults", "Power"]
 
 log = logging.getLogger(__name__)
 
@@ -79,7 +79,7 @@ class Fault:
     off_s: float = 0.5
 
 
-_ALIASES = {"power": "power_loss", "hardware": "hardware_error", "disconnect": "unplug"}
+FAULT_ALIASES = {"power": "power_loss", "hardware": "hardware_error", "disconnect": "unplug"}
 
 
 def parse_faults(spec):
@@ -97,7 +97,7 @@ def parse_faults(spec):
             continue
         try:
             kind_text, _, rest = item.partition("@")
-            kind = FaultKind(_ALIASES.get(kind_text.strip(), kind_text.strip()))
+            kind = FaultKind(FAULT_ALIASES.get(kind_text.strip(), kind_text.strip()))
             where = "packet" if kind is FaultKind.CORRUPT else "move"
             parts = rest.split(":")
             if parts[0].isdigit():                    # the short form kind@N

@@ -3,6 +3,7 @@
 import sys
 
 import click
+from firmware_protocol.faults import FAULT_KINDS, FAULTS_HELP
 
 from ..errors import BadInput, Interrupted, MachineFailure, SpoolChange
 from . import cli
@@ -39,7 +40,8 @@ def _resume_command(plan, machine_name, port, journal, *extra):
                    "without --yes to be guided).")
 @click.option("--status", "show_status", is_flag=True,
               help="Show the journal's state and exit (without --port: the real winding's journal if any).")
-@click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
+@click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...; kinds "
+              + ", ".join(FAULT_KINDS) + ": see stringbot simulate --help).")
 @click.option("--realtime", is_flag=True, help="Dry run: the simulated machine moves at real speed.")
 @click.option("--progress-every", type=click.FloatRange(min=0.1), default=None, metavar="SECONDS",
               help="Print a progress line (step, pin, elapsed, ETA) this often instead of the bar "
@@ -211,10 +213,7 @@ def _summary(result, machine):
 @click.option("--record", default=None, type=click.Path(dir_okay=False),
               help="Write the world's record (wraps, collisions) to this JSON file.")
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
-@click.option("--faults", default=None, help="Faults to inject, a comma list: kind@N (as line N arrives), "
-                                             "kind@N+F (F of line N's move done), kind@t=SECONDS, kind@N..M; "
-                                             "kinds reset, reboot, power, disconnect, freeze, garble, drop-ok, error, "
-                                             "ignore (docs/simulator.md).")
+@click.option("--faults", default=None, help=FAULTS_HELP)
 @click.option("--set", "settings", multiple=True, metavar="SETTING",
               help="Start the firmware with this setting instead of the machine file's (repeatable): "
                    "'$100=40' (GRBL, grblHAL), 'M92 A40' (Marlin), 'ring:Drive Mode=1' (Dynamixel ID:ITEM=VALUE).")
