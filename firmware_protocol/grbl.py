@@ -1,4 +1,4 @@
-"""GRBL 1.1 and grblHAL: what the firmware says, as constants and codecs.
+"""GRBL 1.1, grblHAL and FluidNC: what the firmware says, as constants and codecs.
 
 Shared by both sides: the host link parses responses and status reports with
 these, the simulated firmware produces them.  Sources: GRBL's own

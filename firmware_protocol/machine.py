@@ -169,7 +169,7 @@ class Machine:
     """A checked machine definition.
 
     ``values`` maps ``"section.key"`` (top-level keys without a section) to the
-    checked value, defaults filled in.  The geometry of DESIGN.md's physical
+    checked value, defaults filled in.  The geometry of docs/design.md's physical
     model is derived here so that the host and the simulator agree on it.
     """
 

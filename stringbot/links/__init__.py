@@ -3,7 +3,7 @@
 ``open_port(url)`` opens a port (one clear line when it cannot); a link takes
 the open port object and speaks one firmware's protocol over it:
 
-- :class:`GrblLink` (GRBL 1.1, grblHAL): character counting against the
+- :class:`GrblLink` (GRBL 1.1, grblHAL, FluidNC): character counting against the
   receive buffer, ``G4 P0`` syncs, ``?`` status, ``!`` feed hold.
 - :class:`MarlinLink`: line numbers, checksums, resends, ``M400`` syncs.
 
@@ -43,9 +43,10 @@ def open_link(url, machine, **options):
     if kind == "dynamixel":
         try:
             from . import dynamixel
-        except ImportError:
-            raise BadInput(f"machine {machine.name!r} is a Dynamixel machine; this build has no "
-                           "Dynamixel link yet") from None
+        except ImportError as exc:
+            raise BadInput(f"machine {machine.name!r} is a Dynamixel machine, but the Dynamixel link cannot "
+                           f"be loaded ({exc}); expected the dynamixel-sdk package (pip install "
+                           "dynamixel-sdk)") from None
         return dynamixel.open_dynamixel_link(url, machine, **options)
     port = open_port(url, baudrate=machine["controller.baud"])
     try:

@@ -1,4 +1,4 @@
-"""The GRBL / grblHAL link: character counting, status reports, feed hold.
+"""The GRBL / grblHAL / FluidNC link: character counting, status reports, feed hold.
 
 Streaming follows GRBL's own interface document: the host keeps the count of
 bytes it has sent that the firmware has not yet answered (``ok`` or

@@ -2,7 +2,7 @@
 
 Over a link that is open (and identified here if it is not yet):
 
-- GRBL / grblHAL: ``$$`` (identification reads it, after ``$I``);
+- GRBL / grblHAL / FluidNC: ``$$`` (identification reads it, after ``$I``);
 - Marlin: ``M503``;
 - Dynamixel: the control-table items of both servos (Operating Mode, Drive
   Mode, Velocity Limit, Position Limits) and their model numbers.

@@ -1,4 +1,4 @@
-"""Hooking moves -> G-code, per firmware dialect (GRBL 1.1, grblHAL, Marlin 2.1).
+"""Hooking moves -> G-code, per firmware dialect (GRBL 1.1, grblHAL, FluidNC, Marlin 2.1).
 
 The dialects differ only where the firmware does: axis letters (stock GRBL has
 X, Y, Z only, so its ring is a "linear" axis set to steps per degree), homing

@@ -1,4 +1,4 @@
-"""Plan + machine -> hooking moves, by the physical model of DESIGN.md.
+"""Plan + machine -> hooking moves, by the physical model of docs/design.md.
 
 To hook pin ``j`` with wrap direction ``d`` (+1 or -1), with the head IN:
 

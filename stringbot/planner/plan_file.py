@@ -1,4 +1,4 @@
-"""The plan file: the contract between the planner and everything else (DESIGN.md).
+"""The plan file: the contract between the planner and everything else (docs/design.md).
 
 A plan is JSON::
 
@@ -43,7 +43,7 @@ import numpy as np
 
 from .._files import write_atomic
 from ..errors import BadInput
-from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
+from .thread import ThreadModel
 
 __all__ = ["Plan", "Layer", "read_plan", "write_plan", "FORMAT", "VERSION", "VERSIONS", "MONO_COLOR",
            "MONO_BACKGROUND", "require_one_layer"]
@@ -54,6 +54,10 @@ VERSIONS = (1, 2)    # what is read
 FRAMES = ("circle", "square")
 MONO_COLOR, MONO_BACKGROUND = "#000000", "#ffffff"
 _HEX = re.compile(r"^#[0-9a-f]{6}$")
+#: The frame and thread a plan that does not record them was planned for: what ``plan`` used
+#: before plans carried ``diameter_mm`` and ``thread_mm``.  Apart from the planner's defaults
+#: (thread.DEFAULT_*) on purpose: changing those must not change how an old plan is read.
+UNRECORDED_DIAMETER_MM, UNRECORDED_THREAD_MM = 500.0, 0.25
 
 
 @dataclass(frozen=True)
@@ -145,8 +149,8 @@ class Plan:
 
     def thread_model(self):
         """The plan's :class:`~stringbot.planner.thread.ThreadModel` (500 mm / 0.25 mm where not recorded)."""
-        return ThreadModel(diameter_mm=float(self.diameter_mm or DEFAULT_DIAMETER_MM),
-                           thread_mm=float(self.thread_mm or DEFAULT_THREAD_MM))
+        return ThreadModel(diameter_mm=float(self.diameter_mm or UNRECORDED_DIAMETER_MM),
+                           thread_mm=float(self.thread_mm or UNRECORDED_THREAD_MM))
 
     @classmethod
     def from_layers(cls, layers, *, background=MONO_BACKGROUND, **kw):
@@ -357,7 +361,7 @@ def plan_from_json(doc, *, where="plan"):
         if not (_is_num(v) and v > 0):
             raise BadInput(f"{where}: field {key!r} is {v!r}; expected a number of millimetres > 0")
         size[key] = float(v)
-    if (size["thread_mm"] or DEFAULT_THREAD_MM) >= (size["diameter_mm"] or DEFAULT_DIAMETER_MM):
+    if (size["thread_mm"] or UNRECORDED_THREAD_MM) >= (size["diameter_mm"] or UNRECORDED_DIAMETER_MM):
         raise BadInput(f"{where}: field 'thread_mm' is not less than 'diameter_mm'; "
                        "expected a thread thinner than the frame")
     method = _need(doc, "method", str, where, "a string")
