@@ -26,6 +26,7 @@ import re
 from dataclasses import dataclass, field
 
 from . import dynamixel as dx
+from .kinds import KINDS, get_kind
 
 __all__ = [
     "AXES", "STEPS_PER_UNIT", "MAX_RATE", "ACCELERATION", "MAX_TRAVEL", "REPORT_INCHES",
@@ -207,7 +208,7 @@ class ServoSetting:
     value: int
 
 
-_SERVO_FORM = "ID:ITEM=VALUE (ID a servo id, 'ring' or 'head'; ITEM a control-table name or address)"
+_SERVO_FORM = KINDS["dynamixel"].set_form
 
 
 def parse_servo_setting(text):
@@ -235,24 +236,9 @@ def parse_servo_setting(text):
 
 # ---- presets: the --set forms ------------------------------------------------------------------------
 
-#: A ``--set`` each kind of firmware takes (one that mis-sets its bundled machine).
-PRESET_EXAMPLES = {
-    "grbl": "$100=40",
-    "grblhal": "$103=80",
-    "fluidnc": "$100=40",
-    "marlin": "M92 A40",
-    "dynamixel": "ring:Drive Mode=1",
-}
-
-#: What ``--set`` takes, per kind of firmware.
-PRESET_FORMS = {
-    "grbl": "'$N=VALUE'",
-    "grblhal": "'$N=VALUE'",
-    "fluidnc": "'$N=VALUE' (GRBL's numbers for the items of config.yaml)",
-    "marlin": "'M92|M203|M201|M204|M211 WORDS'",
-    "dynamixel": f"'{_SERVO_FORM}'",
-}
-PRESET_FORMS = {kind: f"{form} (e.g. '{PRESET_EXAMPLES[kind]}')" for kind, form in PRESET_FORMS.items()}
+#: What ``--set`` takes and an example (one that mis-sets its bundled machine), per kind of firmware.
+PRESET_FORMS = {k.name: f"{k.set_form} (e.g. '{k.set_example}')" for k in KINDS.values()}
+PRESET_EXAMPLES = {k.name: k.set_example for k in KINDS.values()}
 
 _MARLIN_SETTERS = ("M92", "M203", "M201", "M204", "M211")
 
@@ -267,21 +253,22 @@ class Preset:
 
 
 def parse_preset(kind, text):
-    """One ``--set`` for a ``kind`` of firmware (``grbl``, ``grblhal``, ``fluidnc``, ``marlin``, ``dynamixel``).
+    """One ``--set`` for a ``kind`` of firmware (a name of :data:`firmware_protocol.kinds.KINDS`).
 
     Raises
     ------
     ValueError
-        Naming the text and the expected form.
+        Naming the text and the expected form (or the kind, when there is no such kind).
     """
     text = text.strip()
+    rules = get_kind(kind).settings
     form = PRESET_FORMS[kind]
-    if kind in ("grbl", "grblhal", "fluidnc"):
+    if rules in ("grbl", "grblhal"):
         got = parse_setting_line(text)
         if got is None or isinstance(got[1], str):
             raise ValueError(f"--set {text!r}: expected {form}")
         return Preset(text, got)
-    if kind == "marlin":
+    if rules == "marlin":
         words = marlin_words(text)
         if words is None or words[0] not in _MARLIN_SETTERS or not words[1]:
             raise ValueError(f"--set {text!r}: expected {form}")

@@ -4,6 +4,7 @@ import sys
 
 import click
 from firmware_protocol.faults import FAULT_KINDS, FAULTS_HELP
+from firmware_protocol.kinds import KINDS
 
 from ..errors import BadInput, Interrupted, MachineFailure, SpoolChange
 from . import cli
@@ -215,8 +216,8 @@ def _summary(result, machine):
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
 @click.option("--faults", default=None, help=FAULTS_HELP)
 @click.option("--set", "settings", multiple=True, metavar="SETTING",
-              help="Start the firmware with this setting instead of the machine file's (repeatable): "
-                   "'$100=40' (GRBL, grblHAL), 'M92 A40' (Marlin), 'ring:Drive Mode=1' (Dynamixel ID:ITEM=VALUE).")
+              help="Start the firmware with this setting instead of the machine file's (repeatable), e.g. "
+                   + ", ".join(f"'{k.set_example}' ({k.title})" for k in KINDS.values()) + ".")
 @click.option("--tie-on", "tie_on", default=None, metavar="COLOUR",
               help="Do not serve: be the operator's hands at the simulator already serving on --pty, tying "
                    "a thread of COLOUR (a name or #rrggbb) on, then exit (a colour plan's spool change).")
