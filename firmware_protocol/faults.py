@@ -132,7 +132,7 @@ def parse_faults(text):
     ValueError
         Naming the bad item and the expected form.
     """
-    faults = []
+    faults: list[Fault] = []
     if text is None or not str(text).strip():
         return faults
     for item in str(text).split(","):
@@ -144,14 +144,15 @@ def parse_faults(text):
         if t is not None:
             fault = Fault(kind, time=float(t))
         elif frac is not None:
-            fault = Fault(kind, int(line), fraction=float(frac))
-            if not 0.0 < fault.fraction < 1.0:
+            fraction = float(frac)
+            fault = Fault(kind, int(line), fraction=fraction)
+            if not 0.0 < fraction < 1.0:
                 raise ValueError(f"bad fault {item!r}: the fraction of the move must be > 0 and < 1; "
                                  f"expected {FAULTS_FORM}")
         elif rng is not None:
             end = math.inf if last is None else int(last)
             fault = Fault(kind, int(line), last=end)
-            if end < fault.line:
+            if end < int(line):
                 raise ValueError(f"bad fault {item!r}: the range ends before it starts; expected {FAULTS_FORM}")
         else:
             fault = Fault(kind, int(line))

@@ -100,7 +100,7 @@ class HookStep:
     index: int
     pin: int
     direction: int
-    moves: list = field(default_factory=list)
+    moves: list[Move] = field(default_factory=list)
     dwell_s: float = 0.0
     total: int | None = None
 
