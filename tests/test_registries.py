@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def help_text(*command):
     """``stringbot COMMAND --help`` as the user reads it, its wrapping undone."""
     out = subprocess.run(["stringbot", *command, "--help"], capture_output=True, text=True, check=True).stdout
-    return " ".join(out.split())
+    return " ".join(re.sub(r"(?<=\w)-\n\s*(?=\w)", "-", out).split())     # drop-ok wrapped as drop-/ok
 
 
 def table_after(page, heading):
@@ -93,7 +93,7 @@ def test_every_method_is_a_choice_of_plan_with_its_summary_and_the_default():
     assert f"[default: {DEFAULT_METHOD}]" in text
 
 
-def test_every_method_has_its_part_in_docs_planner_and_its_name_in_the_plan_file_table():
+def test_every_method_has_its_part_in_docs_planner():
     planner = (ROOT / "docs" / "planner.md").read_text()
     methods_part = planner[planner.index("## What the methods do"):planner.index("## Colour")]
     said = re.findall(r"^\*\*(\w+)\*\* \(", methods_part, re.M)
@@ -101,9 +101,6 @@ def test_every_method_has_its_part_in_docs_planner_and_its_name_in_the_plan_file
     assert f"**{DEFAULT_METHOD}** (the default" in methods_part
     row = re.search(r"^\| `--method ([\w\\|]+)` \| (\w+) \|", planner, re.M)
     assert row.group(1).split("\\|") == list(METHODS) and row.group(2) == DEFAULT_METHOD
-    design = (ROOT / "docs" / "design.md").read_text()
-    row = next(line for line in design.splitlines() if line.startswith("| `method` |"))
-    assert re.findall(r"`(\w+)`", row.split("|")[3])[:len(METHODS)] == list(METHODS)
 
 
 @pytest.mark.parametrize("method", list(METHODS))
