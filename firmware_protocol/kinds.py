@@ -30,8 +30,7 @@ emulator when its bytes differ from its family's.
 import re
 from dataclasses import dataclass
 
-__all__ = ["FirmwareKind", "KINDS", "UnknownKind", "get_kind", "kind_of", "family", "gcode_kinds",
-           "DYNAMIXEL"]
+__all__ = ["FirmwareKind", "KINDS", "UnknownKind", "get_kind", "kind_of", "family", "gcode_kinds"]
 
 
 class UnknownKind(ValueError):
@@ -130,7 +129,6 @@ KINDS = {k.name: k for k in (
                     "after power off; torque is turned off to write them (wind turns it on again)",
         settings="dynamixel", faults="dynamixel", controller="dynamixel"),
 )}
-DYNAMIXEL = KINDS["dynamixel"]
 
 
 def get_kind(name):
