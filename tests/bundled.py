@@ -16,18 +16,34 @@ import tempfile
 from functools import lru_cache
 from pathlib import Path
 
+import pytest
+
 from firmware_protocol.faults import FAULT_KINDS
 from firmware_protocol.machine import bundled_machines, load_machine
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-__all__ = ["MACHINES", "GCODE_MACHINES", "RESUMABLE", "MACHINE_KINDS", "LINE_KINDS", "fault_point", "POINTS"]
+__all__ = ["MACHINES", "GCODE_MACHINES", "RESUMABLE", "MACHINE_KINDS", "LINE_KINDS", "fault_point", "POINTS",
+           "on_a_pty", "SERVO_REALTIME"]
 
 MACHINES = bundled_machines()
 GCODE_MACHINES = [m for m in MACHINES if load_machine(m)["controller.kind"] == "gcode"]
 RESUMABLE = [k.name for k in FAULT_KINDS.values() if k.resumable]
 MACHINE_KINDS = [k for k in RESUMABLE if FAULT_KINDS[k].hits == "machine"]
 LINE_KINDS = [k for k in RESUMABLE if FAULT_KINDS[k].hits == "line"]
+#: A servo bus through a pty or a pipe is a realtime test: its link declares a servo silent when
+#: no answer comes within 35 ms, then 65, 185 and 585 ms (0.75 s in all), and a loaded computer's
+#: simulator thread or process misses that; G-code links wait seconds.
+SERVO_REALTIME = pytest.mark.realtime
+
+
+def on_a_pty(machines):
+    """``machines`` as parameters of a test that serves them on a pty or another process: a servo
+    bus's marked realtime (run apart, one at a time)."""
+    return [pytest.param(m, marks=SERVO_REALTIME) if load_machine(m)["controller.kind"] == "dynamixel" else m
+            for m in machines]
+
+
 #: The kinds of move a fault can strike (benchmarks/bench_fault_matrix.py): the ring turning to a
 #: pin with the head IN, the head going OUT, the ring turning with the head OUT (mid-hook), the
 #: sync line that arrives while that turn runs, the head coming back IN.

@@ -10,12 +10,15 @@ import tty
 import dynamixel_sdk as sdk
 import pytest
 
+from bundled import SERVO_REALTIME
 from firmware_protocol import dynamixel as dx
 from firmware_protocol.emulators.dynamixel import DynamixelEmulator
 from firmware_protocol.machine import load_machine
 from firmware_protocol.world import World
 from stringbot.errors import BadInput, MachineFailure
 from stringbot.links.dynamixel import DynamixelLink
+
+pytestmark = SERVO_REALTIME            # the SDK's answers through a pty, against wall-clock retries
 
 
 class PtyServer:

@@ -11,8 +11,11 @@ from firmware_protocol.machine import load_machine
 from stringbot.errors import MachineFailure
 from stringbot.links.dynamixel import DynamixelLink
 from stringbot.motion import hook_steps
+from bundled import SERVO_REALTIME
 from test_dynamixel_sdk import serve
 from test_gcode_replay import make_plan
+
+pytestmark = SERVO_REALTIME            # the SDK's answers through a pty, against wall-clock retries
 
 
 def random_sequence(n, pins=300, seed=3):

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from bundled import GCODE_MACHINES, MACHINES
+from bundled import GCODE_MACHINES, MACHINES, on_a_pty
 from planner_helpers import plan_files
 from test_wind_sim import small_plan
 
@@ -74,7 +74,7 @@ def test_a_fault_in_the_middle_of_a_move_then_resume_winds_the_plan_exactly(tiny
         assert any("--yes" not in entry.split("\n")[0] for entry in r["log"]), "the guided way was not taken"
 
 
-@pytest.mark.parametrize("machine", MACHINES)
+@pytest.mark.parametrize("machine", on_a_pty(MACHINES))
 def test_every_bundled_machine_loses_power_mid_hook_then_resumes_exactly(tiny, machine):
     """Every machine file of machines/ (the registry: a new one is run here unedited): power lost
     halfway through the ring's turn with the head OUT among the pins -- the firmware restarts with

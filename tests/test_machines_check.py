@@ -7,6 +7,7 @@ from click.testing import CliRunner
 from firmware_protocol import settings as fs
 from firmware_protocol.machine import bundled_machines, load_machine
 from firmware_protocol.urlhandler import protocol_sim
+from bundled import on_a_pty
 from stringbot.cli import cli, main
 from stringbot.links.settings_rules import PERSISTENCE, Verdict, compare
 
@@ -235,7 +236,7 @@ def test_every_bundled_machine_mis_set_through_sim_url_names_the_disagreement(tm
     assert PERSISTENCE[_kind(machine)] in out
 
 
-@pytest.mark.parametrize("machine", bundled_machines())
+@pytest.mark.parametrize("machine", on_a_pty(bundled_machines()))
 def test_every_bundled_machine_mis_set_with_simulate_set_is_found_over_its_pty(tmp_path, machine):
     """``stringbot simulate --machine M --set ...`` in one process, ``machines check M --port PTY``
     in another, as a user practises on a mis-set machine."""

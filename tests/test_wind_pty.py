@@ -15,7 +15,7 @@ import pytest
 
 from stringbot.planner import write_plan
 
-from bundled import MACHINES  # (puts benchmarks/ on the path: matrix_user)
+from bundled import MACHINES, on_a_pty  # (puts benchmarks/ on the path: matrix_user)
 from matrix_user import homes
 from planner_helpers import for_machine
 from test_wind_sim import small_plan
@@ -103,7 +103,7 @@ def first_wind(plan_path, machine, port, journal, *extra):
     return wind(plan_path, machine, port, journal, *(["--head-side", "in"] if machine in HOMES else []), *extra)
 
 
-@pytest.mark.parametrize("machine", MACHINES)
+@pytest.mark.parametrize("machine", on_a_pty(MACHINES))
 def test_wind_through_a_pty(tmp_path, sim_factory, machine):
     plan = for_machine(small_plan(n=14, seed=11), machine)
     write_plan(plan, tmp_path / "plan.json")
