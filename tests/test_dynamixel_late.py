@@ -78,7 +78,7 @@ def test_a_fault_at_move_n_strikes_move_n_however_often_the_host_retries():
     machine = load_machine("dynamixel-ring")
     world = World(machine)
     emu = LateEmulator(machine, world=world, realtime=False, faults="power@11")
-    emu.late_s = 0.05                                   # later than a first attempt waits (35 ms)
+    emu.late_s = 0.04                                   # later than a first attempt waits (35 ms)
     server = PtyServer(emu, idle_s=0.005)
     plan = make_plan(PLANS["long jumps"])
     try:

@@ -87,8 +87,9 @@ def open_sdk(path):
 
 
 def sdk_call(call, *args):
-    """An SDK exchange, repeated (at most 3 times) only if a loaded machine made it time out."""
-    for _ in range(3):
+    """An SDK exchange, repeated (at most 20 times: each waits about 35 ms, the link's own retries
+    wait 0.75 s in all) only if a loaded machine made it time out."""
+    for _ in range(20):
         out = call(*args)
         result = out[-2] if isinstance(out, tuple) else out
         if result != sdk.COMM_RX_TIMEOUT:
