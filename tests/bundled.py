@@ -24,7 +24,7 @@ from firmware_protocol.machine import bundled_machines, load_machine
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 __all__ = ["MACHINES", "GCODE_MACHINES", "RESUMABLE", "MACHINE_KINDS", "LINE_KINDS", "fault_point", "POINTS",
-           "on_a_pty", "SERVO_REALTIME"]
+           "on_a_pty", "SERVO_REALTIME", "PATIENT_GRACE_MS"]
 
 MACHINES = bundled_machines()
 GCODE_MACHINES = [m for m in MACHINES if load_machine(m)["controller.kind"] == "gcode"]
@@ -35,6 +35,12 @@ LINE_KINDS = [k for k in RESUMABLE if FAULT_KINDS[k].hits == "line"]
 #: no answer comes within 35 ms, then 65, 185 and 585 ms (0.75 s in all), and a loaded computer's
 #: simulator thread or process misses that; G-code links wait seconds.
 SERVO_REALTIME = pytest.mark.realtime
+
+
+#: Retry graces (ms) for servo links made in a test's own process: the link's own (0, 50, 200, 500)
+#: are what a user gets; these give a loaded computer's simulator thread seconds, not 0.75 s
+#: (tests/test_dynamixel_late.py checks the link's own).
+PATIENT_GRACE_MS = (0.0, 250.0, 1000.0, 2500.0)
 
 
 def on_a_pty(machines):

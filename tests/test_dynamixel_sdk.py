@@ -10,7 +10,7 @@ import tty
 import dynamixel_sdk as sdk
 import pytest
 
-from bundled import SERVO_REALTIME
+from bundled import PATIENT_GRACE_MS, SERVO_REALTIME
 from firmware_protocol import dynamixel as dx
 from firmware_protocol.emulators.dynamixel import DynamixelEmulator
 from firmware_protocol.machine import load_machine
@@ -19,6 +19,13 @@ from stringbot.errors import BadInput, MachineFailure
 from stringbot.links.dynamixel import DynamixelLink
 
 pytestmark = SERVO_REALTIME            # the SDK's answers through a pty, against wall-clock retries
+
+
+@pytest.fixture(autouse=True)
+def patient_servo_link(monkeypatch):
+    """The links this module makes wait seconds for a late answer (see bundled.PATIENT_GRACE_MS)."""
+    from stringbot.links import dynamixel_bus
+    monkeypatch.setattr(dynamixel_bus, "RETRY_GRACE_MS", PATIENT_GRACE_MS)
 
 
 class PtyServer:
