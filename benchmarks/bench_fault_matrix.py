@@ -44,8 +44,9 @@ it went out by; ``out-gap``: OUT at a gap; ``ring``: the ring turned, the head I
 machine that homes, ``out-pin`` followed by a power cut (the firmware then cannot say where it
 stands).  ``uno-*`` cases run a copy of the
 machine file with ``controller.reset_on_open = true`` (the board reboots whenever the port
-opens).  ``dynamixel-ring`` takes its own faults (``power``, ``corrupt``, ``hardware``,
-``silent`` at move N).  ``host-kill`` SIGKILLs the host ``--kills`` times at random moments
+opens).  The machines are every bundled machine file and the kinds every fault kind a resume
+can get past (``firmware_protocol.faults.FAULT_KINDS``); a Dynamixel machine takes its own
+faults (``power``, ``corrupt``, ``hardware``, ``silent``, ``disconnect`` at move N).  ``host-kill`` SIGKILLs the host ``--kills`` times at random moments
 (after a random journaled step count plus a random fraction of a step) and resumes;
 ``sim-kill`` SIGKILLs the simulator: it cannot be restarted on the same world (the world is
 not restored from a record), so that case judges only the host's stop (exit 1, a message
@@ -77,11 +78,17 @@ from matrix_user import (  # noqa: E402
     DISPLACEMENTS, STRINGBOT, Simulator, _done, _sigint_default, clear_side, displacement, homes, run_guided,
     run_host, type_lines, wait_event)
 
-GCODE = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring"]
-LINE_KINDS = ["garble", "error", "drop-ok", "reset", "power", "disconnect", "reboot"]
-MID_KINDS = ["reset", "power", "reboot"]                   # kind@N+0.5
+from firmware_protocol.emulators.dynamixel import FAULT_ALIASES, FaultKind  # noqa: E402
+from firmware_protocol.faults import FAULT_KINDS  # noqa: E402
+from firmware_protocol.machine import bundled_machines, load_machine  # noqa: E402
+
+# the registries: every bundled machine, every fault kind a resume can get past
+SERVO = [m for m in bundled_machines() if load_machine(m)["controller.kind"] == "dynamixel"]
+GCODE = [m for m in bundled_machines() if m not in SERVO]
+LINE_KINDS = [k.name for k in FAULT_KINDS.values() if k.resumable]                 # kind@N
+MID_KINDS = [k.name for k in FAULT_KINDS.values() if k.resumable and k.hits == "machine"]   # kind@N+0.5
 UNO_KINDS = ["error", "disconnect", "reset"]               # with reset_on_open; reset mid-move
-DXL_KINDS = ["power", "corrupt", "hardware", "silent"]
+DXL_KINDS = [next((a for a, v in FAULT_ALIASES.items() if v == k.value), k.value) for k in FaultKind]
 POINTS = ["ring", "out", "hook", "hook-sync", "in"]
 FIRST = ["home", "first"]            # the first moves: the homing line, the first ring move
 FIRST_KINDS = ["power", "reboot", "reset"]       # at a first point, as the line arrives and mid-move
@@ -284,7 +291,7 @@ def run_case(case, plan_path, seq, workdir, *, timeout=120.0, max_runs=10, seed=
             if repeats >= 2:
                 return {**result, "outcome": "dead end", "runs": run, "stops": stops, "head_out": head_out,
                         "why": f"the same stop three times while following its advice: {msg[-300:]}"}
-            side = clear_side(rec, case.machine) if case.label != "dynamixel-ring" else rec.get("head_side")
+            side = clear_side(rec, case.machine) if case.label not in SERVO else rec.get("head_side")
             offered = set(re.findall(r"--head-side (in|out)\b", msg))
             resuming = ["--resume"] if "--resume" in extra else []
             if side in offered and "--head-side" not in extra:
@@ -360,7 +367,7 @@ def build_cases(workdir, machines, kinds, n_points, kills, seed, plan_for):
     for name in machines:
         plan = plan_for(name)
         plans[name] = plan
-        if name == "dynamixel-ring":
+        if name in SERVO:
             steps = len(json.loads(Path(plan).read_text())["sequence"])
             for kind in (k for k in DXL_KINDS if k in kinds or "dynamixel" in kinds):
                 for i in range(n_points):
@@ -398,7 +405,7 @@ def build_cases(workdir, machines, kinds, n_points, kills, seed, plan_for):
         if "host-kill" in kinds and kills:
             cases.append(Case(name, name, "host-kill", point=f"{kills} kills",
                               kills=sorted(rng.sample(range(1, steps - 1), kills))))
-        if "host-int" in kinds and kills and name != "dynamixel-ring":
+        if "host-int" in kinds and kills and name not in SERVO:
             for machine, kind in ((name, "host-int"), (uno_machine(workdir, name), "uno-int")):
                 cases.append(Case(machine, name, kind, point=f"{kills} Ctrl-C", signal=signal.SIGINT,
                                   kills=sorted(rng.sample(range(1, steps - 1), kills))))
@@ -461,7 +468,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lines", type=int, default=40, help="chords of the plan (steps = lines + 1)")
     ap.add_argument("--picture", default="camera.png", help="a picture in examples/")
-    ap.add_argument("--machines", nargs="*", default=GCODE + ["dynamixel-ring"])
+    ap.add_argument("--machines", nargs="*", default=GCODE + SERVO)
     ap.add_argument("--kinds", nargs="*", default=LINE_KINDS + [f"{k}+0.5" for k in MID_KINDS]
                     + [f"uno-{k}" for k in UNO_KINDS] + [f"first-{k}" for k in FIRST_KINDS]
                     + ["start", "dynamixel", "host-kill", "host-int", "sim-kill"])

@@ -39,6 +39,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = next((d / "shared" for d in ROOT.parents if (d / "shared" / "images").is_dir()), ROOT.parent / "shared")
 DEFAULT_IMAGE = SHARED / "images" / "camera.png"
+sys.path.insert(0, str(ROOT))
+from stringbot.planner.methods import METHODS  # noqa: E402
 
 
 def _command():
@@ -135,7 +137,7 @@ def main():
     ap.add_argument("image", nargs="?", default=str(DEFAULT_IMAGE))
     ap.add_argument("--repeat", type=int, default=3, help="warm runs per case (best and median printed)")
     ap.add_argument("--skip-600", action="store_true", help="skip the 600-pin, 801-px case")
-    ap.add_argument("--methods", default="residual,fitness,greedy", help="methods to run (comma-separated)")
+    ap.add_argument("--methods", default=",".join(METHODS), help="methods to run (comma-separated)")
     ap.add_argument("--pictures", default=None, help="also time the default plan of every picture in this folder")
     ap.add_argument("--no-compile", action="store_true",
                     help="do not compile the package's bytecode first (what every run costs with PYTHONDONTWRITEBYTECODE)")
@@ -149,9 +151,10 @@ def main():
     if not opts.skip_600:
         cases += [("residual", ["--pins", "600", "--size", "801"], None),
                   ("fitness", ["--pins", "600", "--size", "801"], None)]
-    unknown = set(opts.methods.split(",")) - {"residual", "fitness", "greedy"}
+    cases += [(m, ["--pins", "300"], None) for m in METHODS if m not in {c[0] for c in cases}]  # at its own size
+    unknown = set(opts.methods.split(",")) - set(METHODS)
     if unknown:
-        raise SystemExit(f"--methods {opts.methods}: unknown {', '.join(sorted(unknown))}; expected residual, fitness, greedy")
+        raise SystemExit(f"--methods {opts.methods}: unknown {', '.join(sorted(unknown))}; expected {', '.join(METHODS)}")
     cases = [c for c in cases if c[0] in opts.methods.split(",")]
     _adopt_orphans()
     print(f"image {opts.image}; {os.cpu_count()} cores; python {sys.version.split()[0]}; command {' '.join(_command())}")

@@ -28,6 +28,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = next((d / "shared" for d in ROOT.parents if (d / "shared" / "images").is_dir()), ROOT.parent / "shared")
 DEFAULT_IMAGES = SHARED / "images"
+sys.path.insert(0, str(ROOT))
+from stringbot.planner.methods import METHODS  # noqa: E402
 DEFAULT_PEERS = SHARED / "reference" / "peers"
 PEERS = ("threadtone", "giunta")
 KEYS = ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred", "woven_error")
@@ -109,8 +111,8 @@ def run_methods(path, methods, k, pic, pins, size):
         t = time.perf_counter()
         if m == "woven":  # `stringbot plan IMG --machine grbl-ring`: the default method, auto lines, 500 / 0.25 mm
             p = plan_picture(path, pins=pins, size=size, picture=pic, diameter_mm=500.0, thread_mm=0.25)
-        elif m == "greedy":  # ThreadTone's own working size and gray (1001 px, luminance)
-            p = plan_picture(path, pins=pins, lines=k, method=m)
+        elif METHODS[m].size or METHODS[m].gray != "decolor":  # its own working size and gray (greedy:
+            p = plan_picture(path, pins=pins, lines=k, method=m)  # ThreadTone's 1001 px, luminance)
         else:
             p = plan_picture(path, pins=pins, size=size, lines=k, method=m, picture=pic)
         p.stats["bench_seconds"] = round(time.perf_counter() - t, 2)
@@ -122,9 +124,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", default=str(DEFAULT_IMAGES))
     ap.add_argument("--peers", default=str(DEFAULT_PEERS))
-    ap.add_argument("--methods", default="fitness,greedy,residual,woven",
-                    help="stringbot methods to run (comma-separated): fitness, greedy, residual (the default "
-                         "method at ThreadTone's line count), woven (the default method as `stringbot plan IMG "
+    ap.add_argument("--methods", default=",".join(METHODS) + ",woven",
+                    help="stringbot methods to run (comma-separated): " + ", ".join(METHODS) + " (each at "
+                         "ThreadTone's line count), woven (the default method as `stringbot plan IMG "
                          "--machine grbl-ring` makes it: auto lines)")
     ap.add_argument("--only", default=None, help="comma-separated picture names (default: all)")
     ap.add_argument("--pins", type=int, default=300)

@@ -15,63 +15,71 @@ Marlin every non-empty line; the count survives resets and power cycles, so
 ``reset@5,reset@9`` fires twice).  Dynamixel machines have their own faults
 (see ``docs/dynamixel.md``).
 
-Machine kinds (any form but a range): they hit the firmware or the port,
-moving or not.
-
-``reset``
-    a soft reset (as 0x18, or a watchdog): motion stops dead, the queue and
-    the line being received are lost, the position is kept.  GRBL prints
-    ``ALARM:3`` if it was moving and pauses 0.5 s, answers ``ok`` to a line
-    that was waiting in its main loop, then prints its banner.  Marlin has no
-    such reset: it restarts as with ``reboot``.
-``reboot``
-    the board restarts (a brown-out, an Arduino's reset line): everything in
-    progress is lost, nothing is answered for :data:`BOOT_SECONDS`, then the
-    banner; the firmware's position is wiped (0 wherever the axes stand).
-``power``
-    power is lost: motion stops where it is, the port drops (reads and writes
-    fail), and after :data:`POWER_OFF_SECONDS` the firmware starts again with
-    its position lost; the banner waits for the host.
-``freeze``
-    the firmware's main loop hangs: from then on it reads nothing and says
-    nothing (no ``ok``, no ``busy:`` keepalive, no status report); motion
-    already handed to the steppers runs out.  Only ``power`` or ``reboot``
-    (or a board that resets when the port opens) brings it back.
-``disconnect``
-    the USB cable is pulled: what is in transit is lost and the port drops
-    for :data:`DISCONNECT_SECONDS`; the firmware keeps running (queued motion
-    completes) and is still there when the port comes back.
-
-Line kinds (``N``, ``line=N`` or a range): they hit line N.
-
-``garble``
-    bytes of line N are corrupted in transit (its middle byte becomes 0x7F,
-    DEL): the firmware parses what arrived -- GRBL rejects it with an
-    ``error:``, Marlin with a checksum mismatch and ``Resend:``.
-``error``
-    line N is rejected, not executed: GRBL answers ``error:20``, Marlin
-    ``Error:...`` with ``Resend:``.
-``drop-ok``
-    line N is executed but its response (``ok``) is lost on the way back.
-``ignore``
-    line N is answered ``ok`` but not executed (a firmware that acknowledges
-    without acting): no motion, no change of state; the reported position
-    stays where it was.
+The kinds are :data:`FAULT_KINDS` (each a :class:`FaultKind`): machine kinds
+hit the firmware or the port, moving or not (any form but a range); line kinds
+hit line N as it arrives (or a range of lines).  docs/simulator.md says what
+each does, byte by byte, on GRBL and on Marlin.
 """
 
 import math
 import re
 from dataclasses import dataclass
 
-__all__ = ["KINDS", "MACHINE_KINDS", "LINE_KINDS", "Fault", "FaultPlan", "parse_faults", "FAULTS_FORM",
-           "POWER_OFF_SECONDS", "DISCONNECT_SECONDS", "BOOT_SECONDS"]
+__all__ = ["FaultKind", "FAULT_KINDS", "KINDS", "MACHINE_KINDS", "LINE_KINDS", "Fault", "FaultPlan", "parse_faults",
+           "FAULTS_FORM", "FAULTS_HELP", "POWER_OFF_SECONDS", "DISCONNECT_SECONDS", "BOOT_SECONDS"]
 
-MACHINE_KINDS = ("disconnect", "reset", "reboot", "power", "freeze")
-LINE_KINDS = ("garble", "drop-ok", "error", "ignore")
-KINDS = MACHINE_KINDS + LINE_KINDS
+
+@dataclass(frozen=True)
+class FaultKind:
+    """One kind of fault of the simulated G-code machine: the one place that names it.
+
+    ``hits`` is ``"machine"`` (any *when* but a range: the firmware or the port, moving or not)
+    or ``"line"`` (as line N arrives, or a range of lines).  ``summary`` is what happens, in
+    one line (``simulate --help``; docs/simulator.md says it at length).  ``event`` names it in
+    the world's record (default: its name).  ``resumable``: a resume alone (the operator
+    answering questions, no hands on the machine) can finish the job after it; the resume
+    tests and the fault matrix run every resumable kind.  A machine kind is fired by the
+    emulator's ``_fault_<name>`` (``-`` as ``_``), a line kind applied by its protocol
+    (:meth:`GcodeFirmware._line_faults` hands the kinds of each line on).
+    """
+
+    name: str
+    hits: str
+    summary: str
+    event: str = ""
+    resumable: bool = True
+
+    def __post_init__(self):
+        if self.hits not in ("machine", "line"):
+            raise ValueError(f"fault kind {self.name!r}: hits {self.hits!r}; expected 'machine' or 'line'")
+
+
+#: Every fault kind, by name.  Machine kinds in the order they take precedence when several hit
+#: one line (the first wins: the line is gone), then the line kinds.
+FAULT_KINDS = {k.name: k for k in (
+    FaultKind("power", "machine", "power lost: the port drops, the firmware restarts with its position lost",
+              event="power off"),
+    FaultKind("disconnect", "machine", "the cable pulled: the port drops for 0.5 s, the firmware runs on",
+              event="port down"),
+    FaultKind("reboot", "machine", "the board restarts: silent for a second, then its banner, its position lost"),
+    FaultKind("reset", "machine", "a soft reset: motion stops dead, the queue is lost, the position is kept"),
+    FaultKind("freeze", "machine", "the main loop hangs: deaf and mute until power or a reboot",
+              resumable=False),
+    FaultKind("garble", "line", "the line corrupted in transit (its middle byte DEL)"),
+    FaultKind("drop-ok", "line", "the line executed, its ok lost"),
+    FaultKind("error", "line", "the line rejected, not executed"),
+    FaultKind("ignore", "line", "the line answered ok but not executed"),
+)}
+MACHINE_KINDS = tuple(k.name for k in FAULT_KINDS.values() if k.hits == "machine")
+LINE_KINDS = tuple(k.name for k in FAULT_KINDS.values() if k.hits == "line")
+KINDS = tuple(FAULT_KINDS)
 FAULTS_FORM = ("a comma list of kind@N, kind@N+F (0<F<1), kind@t=SECONDS or, for "
                + "/".join(LINE_KINDS) + ", kind@N..M / kind@N.. ; kind one of " + ", ".join(KINDS)
                + " and N >= 1 (e.g. reset@12,reset@t=30.5,power@40+0.5,ignore@60..)")
+#: The ``--faults`` help of ``stringbot simulate`` and ``wind``.
+FAULTS_HELP = ("Faults to inject, a comma list: kind@N (as line N arrives), kind@N+F (F of line N's move done), "
+               "kind@t=SECONDS, kind@N..M (" + ", ".join(LINE_KINDS) + "); kinds " + ", ".join(KINDS)
+               + " (docs/simulator.md; Dynamixel machines: docs/dynamixel.md).")
 #: Virtual seconds the port stays down after ``power`` (the firmware restarts when it comes back).
 POWER_OFF_SECONDS = 1.0
 #: Virtual seconds the port stays down after ``disconnect``.
@@ -124,7 +132,7 @@ def parse_faults(text):
     ValueError
         Naming the bad item and the expected form.
     """
-    faults = []
+    faults: list[Fault] = []
     if text is None or not str(text).strip():
         return faults
     for item in str(text).split(","):
@@ -136,14 +144,15 @@ def parse_faults(text):
         if t is not None:
             fault = Fault(kind, time=float(t))
         elif frac is not None:
-            fault = Fault(kind, int(line), fraction=float(frac))
-            if not 0.0 < fault.fraction < 1.0:
+            fraction = float(frac)
+            fault = Fault(kind, int(line), fraction=fraction)
+            if not 0.0 < fraction < 1.0:
                 raise ValueError(f"bad fault {item!r}: the fraction of the move must be > 0 and < 1; "
                                  f"expected {FAULTS_FORM}")
         elif rng is not None:
             end = math.inf if last is None else int(last)
             fault = Fault(kind, int(line), last=end)
-            if end < fault.line:
+            if end < int(line):
                 raise ValueError(f"bad fault {item!r}: the range ends before it starts; expected {FAULTS_FORM}")
         else:
             fault = Fault(kind, int(line))

@@ -1,7 +1,10 @@
-"""GRBL 1.1 and grblHAL: what the firmware says, as constants and codecs.
+"""GRBL 1.1, grblHAL and FluidNC: what the firmware says, as constants and codecs.
 
 Shared by both sides: the host link parses responses and status reports with
-these, the simulated firmware produces them.  Sources: GRBL's own
+these, the simulated firmware produces them.  The GRBL family's one banner
+detector (:func:`is_banner`: the link, resume's recovery and the tests use it)
+and its identification (:func:`identify`) read the family's records in
+:mod:`firmware_protocol.kinds`.  Sources: GRBL's own
 ``doc/markdown/interface.md``, ``commands.md``, ``settings.md`` and the
 ``doc/csv`` code tables (gnea/grbl), and grblHAL's ``$I`` report.
 
@@ -18,7 +21,7 @@ __all__ = [
     "STATUS_QUERY", "FEED_HOLD", "CYCLE_START", "SOFT_RESET", "SAFETY_DOOR", "JOG_CANCEL",
     "REALTIME_BYTES", "ERROR_CODES", "ALARM_CODES", "UNLOCK_MESSAGE", "EOL",
     "Status", "parse_status", "parse_error", "parse_alarm", "is_banner", "describe_error",
-    "describe_alarm",
+    "describe_alarm", "Identity", "identify",
 ]
 
 EOL = b"\r\n"
@@ -133,9 +136,53 @@ def parse_alarm(line):
 
 
 def is_banner(line):
-    """True for GRBL's and grblHAL's start-up line (``Grbl 1.1h ['$' for help]``)."""
-    text = line.strip()
-    return (text.startswith("Grbl ") or text.startswith("GrblHAL ")) and "for help]" in text
+    """True for the start-up line of a firmware of the GRBL family (``Grbl 1.1h ['$' for help]``,
+    ``GrblHAL 1.1f ...``, ``Grbl 3.7 [FluidNC v3.7.8 ...]``): printed at power-up and after every
+    reset, so a host that sees it knows the firmware (re)started."""
+    from .kinds import family
+
+    return any(k.is_banner(line) for k in family("grbl"))
+
+
+@dataclass(frozen=True)
+class Identity:
+    """Who of the GRBL family answered: its kind (a name of :data:`firmware_protocol.kinds.KINDS`),
+    as people name it, its version, and the receive buffer and planner blocks ``$I`` reported
+    (0 when it did not)."""
+
+    kind: str
+    title: str
+    version: str
+    rx_buffer: int = 0
+    planner_blocks: int = 0
+
+
+_OPT = re.compile(r"^\[OPT:([^,\]]*),(\d+),(\d+)")
+_VER = re.compile(r"^\[VER:([^:\]]*)")
+
+
+def identify(lines):
+    """Which firmware of the GRBL family said ``lines`` (its start-up lines and its answer to
+    ``$I``); None when none of them did.  The kinds that name themselves apart (FluidNC,
+    grblHAL) are tried before plain GRBL (:func:`firmware_protocol.kinds.family`)."""
+    from .kinds import family
+
+    lines = [x.strip() for x in lines]
+    rx = blocks = 0
+    version = ""
+    for line in lines:
+        m = _OPT.match(line)
+        if m:
+            blocks, rx = int(m.group(2)), int(m.group(3))
+        m = _VER.match(line)
+        if m and not version:
+            version = m.group(1)
+    for kind in family("grbl"):
+        found = kind.found_in(lines)
+        if found is not None:
+            banner = next((x.split()[1] for x in lines if kind.is_banner(x) and len(x.split()) > 1), "")
+            return Identity(kind.name, kind.title, found or banner or version, rx, blocks)
+    return None
 
 
 @dataclass
@@ -166,52 +213,50 @@ def _floats(text):
     return tuple(float(v) for v in text.split(","))
 
 
-def parse_status(line, *, wco=None):
+_FIELD_09 = re.compile(r"([A-Za-z]+):([^:]*?)(?=,[A-Za-z]+:|$)")
+
+
+def parse_status(line, *, wco=None, strict=True):
     """Parse a status report line; None if ``line`` is not one.
 
     Parameters
     ----------
     line : str or bytes
-        ``<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>`` (with or without line end).
+        ``<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>`` (GRBL 1.1, with or without line end),
+        or GRBL 0.9's ``<Idle,MPos:0.000,0.000,0.000,WPos:0.000,0.000,0.000>``.
     wco : tuple, optional
         The last work coordinate offset the host saw, used to fill in ``mpos``
         from ``WPos`` (or ``wpos`` from ``MPos``) when the report carries no ``WCO``.
+    strict : bool
+        Raise on a malformed known field; False leaves it unparsed (None) and keeps its text in
+        ``fields``.
 
     Raises
     ------
     ValueError
-        If the line looks like a report (``<...>``) but a known field is malformed.
+        If ``strict`` and the line looks like a report (``<...>``) but a known field is malformed.
     """
     if isinstance(line, bytes):
         line = line.decode("ascii", "replace")
     text = line.strip()
     if not (text.startswith("<") and text.endswith(">")):
         return None
-    parts = text[1:-1].split("|")
-    state, _, sub = parts[0].partition(":")
-    st = Status(state=state, substate=int(sub) if sub else None)
-    try:
-        for part in parts[1:]:
-            name, _, value = part.partition(":")
-            st.fields[name] = value
-            if name == "MPos":
-                st.mpos = _floats(value)
-            elif name == "WPos":
-                st.wpos = _floats(value)
-            elif name == "WCO":
-                st.wco = _floats(value)
-            elif name == "Bf":
-                blocks, rx = value.split(",")
-                st.planner_free, st.rx_free = int(blocks), int(rx)
-            elif name == "FS":
-                feed, speed = value.split(",")
-                st.feed, st.spindle = float(feed), float(speed)
-            elif name == "F":
-                st.feed = float(value)
-            elif name == "Ln":
-                st.line_number = int(value)
-    except ValueError as exc:
-        raise ValueError(f"malformed GRBL status report {text!r}: {exc}") from None
+    body = text[1:-1]
+    if "|" in body or "," not in body:
+        head, *rest = body.split("|")
+        parts = [p.partition(":")[::2] for p in rest]
+    else:                                   # GRBL 0.9: <Idle,MPos:...,WPos:...>
+        head, _, tail = body.partition(",")
+        parts = _FIELD_09.findall(tail)
+    state, _, sub = head.partition(":")
+    st = Status(state=state, substate=int(sub) if sub.isdigit() else None)
+    for name, value in parts:
+        st.fields[name] = value
+        try:
+            _parse_field(st, name, value)
+        except ValueError as exc:
+            if strict:
+                raise ValueError(f"malformed GRBL status report {text!r}: {exc}") from None
     offset = st.wco if st.wco is not None else wco
     if offset is not None:
         if st.mpos is not None and st.wpos is None and len(offset) == len(st.mpos):
@@ -219,3 +264,23 @@ def parse_status(line, *, wco=None):
         elif st.wpos is not None and st.mpos is None and len(offset) == len(st.wpos):
             st.mpos = tuple(w + o for w, o in zip(st.wpos, offset))
     return st
+
+
+def _parse_field(st, name, value):
+    """One field of a status report into ``st`` (ValueError when it is malformed)."""
+    if name == "MPos":
+        st.mpos = _floats(value)
+    elif name == "WPos":
+        st.wpos = _floats(value)
+    elif name == "WCO":
+        st.wco = _floats(value)
+    elif name == "Bf":
+        blocks, rx = value.split(",")
+        st.planner_free, st.rx_free = int(blocks), int(rx)
+    elif name == "FS":
+        feed, speed = value.split(",")
+        st.feed, st.spindle = float(feed), float(speed)
+    elif name == "F":
+        st.feed = float(value)
+    elif name == "Ln":
+        st.line_number = int(value)

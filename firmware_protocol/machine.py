@@ -14,14 +14,17 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
+
+from .kinds import KINDS, gcode_kinds
 
 __all__ = [
     "MachineFileError", "Machine", "load_machine", "find_machine_file", "bundled_machines",
     "AXES", "SCHEMA", "DYNAMIXEL_MAX_TURNS", "machine_from_dict",
 ]
 
-#: Axis letters each dialect can drive.
-AXES = {"grbl": "XYZ", "grblhal": "XYZABC", "fluidnc": "XYZABC", "marlin": "XYZABC"}
+#: The axis letters of each G-code firmware (its record in firmware_protocol.kinds).
+AXES = {name: KINDS[name].axes for name in gcode_kinds()}
 
 
 class MachineFileError(ValueError):
@@ -102,7 +105,7 @@ SCHEMA = {
     },
     "controller": {
         "kind": _Key(str, choices=("gcode", "dynamixel")),
-        "dialect": _Key(str, None, choices=("grbl", "grblhal", "fluidnc", "marlin")),
+        "dialect": _Key(str, None, choices=tuple(gcode_kinds())),
         "ring_axis": _Key(str, None),
         "head_axis": _Key(str, None),
         "baud": _Key(int, 115200, lo=1200, hi=4_000_000),
@@ -169,48 +172,48 @@ class Machine:
     """A checked machine definition.
 
     ``values`` maps ``"section.key"`` (top-level keys without a section) to the
-    checked value, defaults filled in.  The geometry of DESIGN.md's physical
+    checked value, defaults filled in.  The geometry of docs/design.md's physical
     model is derived here so that the host and the simulator agree on it.
     """
 
     name: str
-    path: str
-    values: dict
+    path: str | None
+    values: dict[str, Any]
 
-    def __getitem__(self, dotted):
+    def __getitem__(self, dotted: str) -> Any:
         return self.values[dotted]
 
     @property
-    def pins(self):
+    def pins(self) -> int:
         return self.values["ring.pins"]
 
     @property
-    def pitch_deg(self):
+    def pitch_deg(self) -> float:
         """Angle between neighbouring pins."""
         return 360.0 / self.pins
 
     @property
-    def pitch_mm(self):
+    def pitch_mm(self) -> float:
         """Arc length between neighbouring pin centres."""
         return math.pi * self.values["ring.diameter_mm"] / self.pins
 
     @property
-    def free_gap_mm(self):
+    def free_gap_mm(self) -> float:
         """Room left between two pins once the thread is in the gap."""
         return self.pitch_mm - self.values["ring.pin_diameter_mm"] - self.values["thread.diameter_mm"]
 
     @property
-    def gap_tolerance_deg(self):
+    def gap_tolerance_deg(self) -> float:
         """How far from a gap's centre the head may cross the pin circle, in ring degrees."""
         return (self.free_gap_mm / 2.0) / (math.pi * self.values["ring.diameter_mm"]) * 360.0
 
     @property
-    def circle_mm(self):
+    def circle_mm(self) -> float:
         """Head axis position at which the eyelet crosses the pin circle (midway IN to OUT)."""
         return (self.values["head.in_mm"] + self.values["head.out_mm"]) / 2.0
 
     @property
-    def head_travel_mm(self):
+    def head_travel_mm(self) -> tuple[float, float]:
         """(low, high) mechanical ends of the head axis: ``head.travel_min_mm`` / ``travel_max_mm``,
         by default a quarter of the IN-OUT distance beyond IN, OUT and the home switch."""
         v = self.values
@@ -222,16 +225,16 @@ class Machine:
         return (min(ends) - margin if lo is None else lo, max(ends) + margin if hi is None else hi)
 
     @property
-    def thread_width_key(self):
+    def thread_width_key(self) -> str:
         """The key of the width the planner draws the thread at: ``thread.effective_mm`` once
         calibrated, else ``thread.diameter_mm``."""
         return "thread.effective_mm" if self.values.get("thread.effective_mm") is not None else "thread.diameter_mm"
 
-    def pin_angle(self, pin):
+    def pin_angle(self, pin: int) -> float:
         """Ring axis position (degrees) at which ``pin`` faces the head station."""
         return self.values["ring.pin0_angle_deg"] + pin * self.pitch_deg
 
-    def to_toml(self):
+    def to_toml(self) -> str:
         """The checked values as TOML text, defaults filled in.
 
         Keys left unset, and controller keys of the other controller kind, are omitted.
@@ -252,7 +255,7 @@ class Machine:
                 lines.append(f"{key} = {text}")
         return "\n".join(lines) + "\n"
 
-    def derived(self):
+    def derived(self) -> list[tuple[str, str]]:
         """Derived figures as ``(label, text)`` rows: pitch, free gap, gap tolerance, reach."""
         v = self.values
         mm_per_deg = math.pi * v["ring.diameter_mm"] / 360.0
@@ -419,7 +422,7 @@ def _check_consistency(m, source):
         dialect = v["controller.dialect"]
         if dialect is None:
             raise MachineFileError(f"{source}: controller.dialect is missing; expected one of "
-                                   f"'grbl', 'grblhal', 'fluidnc', 'marlin' for kind = 'gcode'")
+                                   + ", ".join(f"'{k}'" for k in gcode_kinds()) + " for kind = 'gcode'")
         for key in ("controller.ring_axis", "controller.head_axis"):
             axis = v[key]
             if axis is None or len(axis) != 1 or axis not in AXES[dialect]:

@@ -26,13 +26,14 @@ import re
 from dataclasses import dataclass, field
 
 from . import dynamixel as dx
+from .kinds import KINDS, get_kind
 
 __all__ = [
     "AXES", "STEPS_PER_UNIT", "MAX_RATE", "ACCELERATION", "MAX_TRAVEL", "REPORT_INCHES",
     "SOFT_LIMITS", "HOMING", "ROTARY_AXES", "ROTARY_WRAP", "axis_setting", "setting_label",
     "parse_setting_line", "parse_settings", "setting_line", "number",
     "MARLIN_REPORTS", "MarlinSettings", "marlin_words", "m503_lines", "parse_m503",
-    "ServoSetting", "parse_servo_setting", "Preset", "parse_preset", "PRESET_FORMS",
+    "ServoSetting", "parse_servo_setting", "Preset", "parse_preset", "PRESET_FORMS", "PRESET_EXAMPLES",
 ]
 
 AXES = "XYZABC"
@@ -207,7 +208,7 @@ class ServoSetting:
     value: int
 
 
-_SERVO_FORM = "ID:ITEM=VALUE (ID a servo id, 'ring' or 'head'; ITEM a control-table name or address)"
+_SERVO_FORM = KINDS["dynamixel"].set_form
 
 
 def parse_servo_setting(text):
@@ -235,13 +236,9 @@ def parse_servo_setting(text):
 
 # ---- presets: the --set forms ------------------------------------------------------------------------
 
-#: What ``--set`` takes, per kind of firmware.
-PRESET_FORMS = {
-    "grbl": "'$N=VALUE' (e.g. '$100=40')",
-    "grblhal": "'$N=VALUE' (e.g. '$103=80')",
-    "marlin": "'M92|M203|M201|M204|M211 WORDS' (e.g. 'M92 A40')",
-    "dynamixel": f"'{_SERVO_FORM}' (e.g. 'ring:Drive Mode=1')",
-}
+#: What ``--set`` takes and an example (one that mis-sets its bundled machine), per kind of firmware.
+PRESET_FORMS = {k.name: f"{k.set_form} (e.g. '{k.set_example}')" for k in KINDS.values()}
+PRESET_EXAMPLES = {k.name: k.set_example for k in KINDS.values()}
 
 _MARLIN_SETTERS = ("M92", "M203", "M201", "M204", "M211")
 
@@ -256,21 +253,22 @@ class Preset:
 
 
 def parse_preset(kind, text):
-    """One ``--set`` for a ``kind`` of firmware (``grbl``, ``grblhal``, ``marlin``, ``dynamixel``).
+    """One ``--set`` for a ``kind`` of firmware (a name of :data:`firmware_protocol.kinds.KINDS`).
 
     Raises
     ------
     ValueError
-        Naming the text and the expected form.
+        Naming the text and the expected form (or the kind, when there is no such kind).
     """
     text = text.strip()
+    rules = get_kind(kind).settings
     form = PRESET_FORMS[kind]
-    if kind in ("grbl", "grblhal"):
+    if rules in ("grbl", "grblhal"):
         got = parse_setting_line(text)
         if got is None or isinstance(got[1], str):
             raise ValueError(f"--set {text!r}: expected {form}")
         return Preset(text, got)
-    if kind == "marlin":
+    if rules == "marlin":
         words = marlin_words(text)
         if words is None or words[0] not in _MARLIN_SETTERS or not words[1]:
             raise ValueError(f"--set {text!r}: expected {form}")

@@ -1,6 +1,6 @@
 """The simulator's physical machine: ring, pins, thread head and the thread.
 
-This is the ground truth that tests compare plans with (DESIGN.md, "The
+This is the ground truth that tests compare plans with (docs/design.md, "The
 physical model").  It knows nothing of firmware or G-code: an emulator keeps
 the firmware's belief (machine position, lost on a reset) apart and calls
 :meth:`World.move` with *physical* positions for every motion segment it

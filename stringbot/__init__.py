@@ -4,7 +4,7 @@ The host side, in layers that each use only the ones after them::
 
     cli -> winding -> links -> motion -> planner
 
-See DESIGN.md for the contracts (plan file, machine file, physical model).
+See docs/design.md for the contracts (plan file, machine file, physical model).
 """
 
 __version__ = "0.1.0"

@@ -5,6 +5,7 @@ import json
 import pytest
 
 from firmware_protocol.machine import bundled_dir, load_machine
+from bundled import GCODE_MACHINES
 from gcode_replay import replay
 from stringbot.cli import main
 from stringbot.planner import write_plan
@@ -51,7 +52,7 @@ def test_machines_show_takes_a_users_file(capsys, tmp_path):
     assert code == 0 and "pins = 200" in out and "1.8000 deg" in out
 
 
-@pytest.mark.parametrize("name", ["grbl-ring", "grblhal-ring", "marlin-ring"])
+@pytest.mark.parametrize("name", GCODE_MACHINES)
 def test_gcode_writes_a_job_that_replays_exactly(capsys, tmp_path, plan_path, name):
     from stringbot.planner import read_plan
     write_plan(for_machine(read_plan(plan_path), name), plan_path)
@@ -64,15 +65,16 @@ def test_gcode_writes_a_job_that_replays_exactly(capsys, tmp_path, plan_path, na
     assert lines[0].startswith("; stringbot") and any(f"machine: {name}" in x for x in lines[:8])
     assert "; pin 150 (step 2/66)" in lines
     machine = load_machine(name)
+    marlin = machine["controller.dialect"] == "marlin"
     world, _ = replay(text, machine)
     plan = json.loads(plan_path.read_text())
     assert [w.pin for w in world.wraps] == plan["sequence"] and world.collisions == []
-    if name == "marlin-ring":
+    if marlin:
         assert "M400" in lines and "G4 P0" not in lines and lines[-1].startswith("M117")
-        assert "G28 Y A" in lines and "G94" not in lines
+        assert "G94" not in lines
     else:
         assert "G4 P0" in lines and lines[-1] == "M2"
-    home = "G28 Y A" if name == "marlin-ring" else "$H"
+    home = f"G28 {machine['controller.head_axis']} {machine['controller.ring_axis']}" if marlin else "$H"
     assert (home in lines) == machine["controller.homing"]
     if home in lines:       # before any G-code: GRBL with homing on is locked in alarm until $H
         assert lines.index(home) < lines.index("G21")

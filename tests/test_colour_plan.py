@@ -8,6 +8,7 @@ from PIL import Image
 
 from firmware_protocol.machine import load_machine
 from firmware_protocol.world import World
+from bundled import GCODE_MACHINES
 from gcode_replay import replay
 from stringbot.cli import main
 from stringbot.errors import BadInput
@@ -227,7 +228,7 @@ def test_estimates_per_layer_add_up():
     assert [le.tie_on_pin for le in per] == [lay.sequence[0] for lay in plan.layers]
 
 
-@pytest.mark.parametrize("name", ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring"])
+@pytest.mark.parametrize("name", GCODE_MACHINES)
 def test_gcode_pauses_at_each_spool_change(name):
     plan, machine = colour_plan(), load_machine(name)
     text = gcode_job(plan, machine, plan_name="c.json")

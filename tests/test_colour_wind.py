@@ -12,11 +12,10 @@ from stringbot.planner import write_plan
 from stringbot.winding import Job, read_journal, wind_plan
 from stringbot.winding.resume import resume_plan
 
+from bundled import MACHINES
 from planner_helpers import for_machine
 from test_colour_plan import colour_plan
 from test_wind_sim import eyes_at
-
-MACHINES = ["grbl-ring", "grblhal-ring", "fluidnc-ring", "marlin-ring", "dynamixel-ring"]
 
 
 def hands_at(url):

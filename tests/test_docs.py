@@ -113,3 +113,13 @@ def test_machines_show_is_a_machine_file_that_loads_back(tmp_path):
                        check=True)
     from firmware_protocol.machine import load_machine
     assert load_machine(str(mine)).values == load_machine("grblhal-ring").values
+
+
+def test_ci_runs_the_readmes_test_command():
+    """.ci/run runs the README's test command exactly (what a newcomer runs is what CI runs)."""
+    [block] = [b for b in sh_blocks(ROOT / "README.md") if any("pytest" in line for line in b)]
+    [line] = [x for x in block if "pytest" in x]
+    command = line[line.index("python3 -m pytest"):]
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    assert command in ci, f".ci/run does not run the README's test command {command!r}"
+    assert "-n auto" in command and "-m 'realtime and not slow'" in command

@@ -10,12 +10,22 @@ import tty
 import dynamixel_sdk as sdk
 import pytest
 
+from bundled import PATIENT_GRACE_MS, SERVO_REALTIME
 from firmware_protocol import dynamixel as dx
 from firmware_protocol.emulators.dynamixel import DynamixelEmulator
 from firmware_protocol.machine import load_machine
 from firmware_protocol.world import World
 from stringbot.errors import BadInput, MachineFailure
 from stringbot.links.dynamixel import DynamixelLink
+
+pytestmark = SERVO_REALTIME            # the SDK's answers through a pty, against wall-clock retries
+
+
+@pytest.fixture(autouse=True)
+def patient_servo_link(monkeypatch):
+    """The links this module makes wait seconds for a late answer (see bundled.PATIENT_GRACE_MS)."""
+    from stringbot.links import dynamixel_bus
+    monkeypatch.setattr(dynamixel_bus, "RETRY_GRACE_MS", PATIENT_GRACE_MS)
 
 
 class PtyServer:
@@ -84,8 +94,9 @@ def open_sdk(path):
 
 
 def sdk_call(call, *args):
-    """An SDK exchange, repeated (at most 3 times) only if a loaded machine made it time out."""
-    for _ in range(3):
+    """An SDK exchange, repeated (at most 20 times: each waits about 35 ms, the link's own retries
+    wait 0.75 s in all) only if a loaded machine made it time out."""
+    for _ in range(20):
         out = call(*args)
         result = out[-2] if isinstance(out, tuple) else out
         if result != sdk.COMM_RX_TIMEOUT:

@@ -11,8 +11,18 @@ from firmware_protocol.machine import load_machine
 from stringbot.errors import MachineFailure
 from stringbot.links.dynamixel import DynamixelLink
 from stringbot.motion import hook_steps
+from bundled import PATIENT_GRACE_MS, SERVO_REALTIME
 from test_dynamixel_sdk import serve
 from test_gcode_replay import make_plan
+
+pytestmark = SERVO_REALTIME            # the SDK's answers through a pty, against wall-clock retries
+
+
+@pytest.fixture(autouse=True)
+def patient_servo_link(monkeypatch):
+    """The links this module makes wait seconds for a late answer (see bundled.PATIENT_GRACE_MS)."""
+    from stringbot.links import dynamixel_bus
+    monkeypatch.setattr(dynamixel_bus, "RETRY_GRACE_MS", PATIENT_GRACE_MS)
 
 
 def random_sequence(n, pins=300, seed=3):

@@ -6,13 +6,12 @@ import tomllib
 import numpy as np
 import pytest
 
-from firmware_protocol.machine import bundled_dir, bundled_machines, load_machine, machine_from_dict
+from bundled import GCODE_MACHINES
+from firmware_protocol.machine import bundled_dir, load_machine, machine_from_dict
 from firmware_protocol.world import World
 from gcode_replay import replay
 from stringbot.motion import gcode_job, hook_steps
 from stringbot.planner import Plan
-
-GCODE_MACHINES = [n for n in bundled_machines() if load_machine(n)["controller.kind"] == "gcode"]
 
 
 def make_plan(sequence, pins=300):

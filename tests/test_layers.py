@@ -1,4 +1,4 @@
-"""The dependency rules of DESIGN.md, checked mechanically by import-linter."""
+"""The dependency rules of docs/design.md, checked mechanically by import-linter."""
 
 import shutil
 import subprocess

@@ -1,5 +1,7 @@
 """The Marlin link as exact exchange tables over a scripted port."""
 
+import re
+
 import pytest
 
 from stringbot.errors import MachineFailure
@@ -138,6 +140,7 @@ def test_silence_is_a_clear_failure():
     port.assert_done()
 
 
+@pytest.mark.realtime
 def test_a_marlin_that_stops_sending_keepalives_is_declared_unresponsive(tmp_path):
     """``stringbot simulate --realtime`` (its own process, a pty) with the ring slowed to 30 deg/s:
     step 2's half-turn jump waits 6 s on M400, with a busy: keepalive every 2 s; ``freeze@40`` (the
@@ -173,7 +176,8 @@ def test_a_marlin_that_stops_sending_keepalives_is_declared_unresponsive(tmp_pat
         sim.communicate(timeout=10)
     assert wind.returncode == 1 and "Traceback" not in wind.stderr, wind.stderr
     [line] = [x for x in wind.stderr.splitlines() if x.startswith("stringbot: error:")]
-    assert "stopped answering" in line and "keepalives every 2 s" in line and "--resume" in line
+    # the period it names is what it measured (2 s on an idle computer, more on a loaded one): not asserted
+    assert "stopped answering" in line and re.search(r"keepalives every \d+(\.\d+)? s", line) and "--resume" in line
     assert "(at pin 1, step 3)" in line
     stop = read_journal(tmp_path / "plan.json.journal").last_stop
     assert stop["reason"] == "failed" and "stopped answering" in stop["error"]

@@ -5,10 +5,11 @@ import pytest
 from click.testing import CliRunner
 
 from firmware_protocol import settings as fs
-from firmware_protocol.machine import load_machine
+from firmware_protocol.machine import bundled_machines, load_machine
 from firmware_protocol.urlhandler import protocol_sim
+from bundled import on_a_pty
 from stringbot.cli import cli, main
-from stringbot.links.settings_rules import Verdict, compare
+from stringbot.links.settings_rules import PERSISTENCE, Verdict, compare
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -33,13 +34,16 @@ def forget_simulators():
     protocol_sim.forget()
 
 
-@pytest.mark.parametrize("machine, rows", [("grbl-ring", 9), ("grblhal-ring", 11), ("fluidnc-ring", 9),
-                                           ("marlin-ring", 8), ("dynamixel-ring", 13)])
-def test_each_bundled_machine_agrees_with_its_simulator(capsys, machine, rows):
+ROWS = {"grbl-ring": 9, "grblhal-ring": 11, "fluidnc-ring": 9, "marlin-ring": 8, "dynamixel-ring": 13}
+
+
+@pytest.mark.parametrize("machine", bundled_machines())
+def test_each_bundled_machine_agrees_with_its_simulator(capsys, machine):
     code, out, err = run(["machines", "check", machine], capsys)
     assert code == 0, err
     lines = out.splitlines()
     assert lines[1].split() == ["setting", "firmware", "machine", "file", "needs", "verdict"]
+    rows = ROWS.get(machine) or len(lines) - 3          # a machine file added since: every row it shows
     table = lines[2:2 + rows]
     assert all(x.rstrip().endswith(("ok", "wind sets it")) for x in table), table
     assert lines[2 + rows] == f"all {rows} settings agree with the machine file"
@@ -209,3 +213,50 @@ def test_apply_without_a_terminal_is_one_line_and_sends_nothing(tmp_path):
         "stringbot: error: --apply asks before sending, but standard input ended (not a terminal); "
         "nothing was sent: run in a terminal, or add --yes")
     assert "Traceback" not in p.stderr
+
+
+# ---- every bundled machine, mis-set as a user does it -------------------------------------------
+
+def _kind(name):
+    m = load_machine(name)
+    return m["controller.dialect"] or m["controller.kind"]
+
+
+@pytest.mark.parametrize("machine", bundled_machines())
+def test_every_bundled_machine_mis_set_through_sim_url_names_the_disagreement(tmp_path, capsys, machine):
+    """``sim://?machine=M&set=...`` takes its kind's ``--set`` form (fluidnc-ring ended in KeyError)."""
+    setting = fs.PRESET_EXAMPLES[_kind(machine)]
+    code, out, err = run(["machines", "check", machine, "--port", url(tmp_path, machine, setting)], capsys)
+    assert code == 1, err
+    assert "Traceback" not in err and err.count("\n") == 1
+    assert "DISAGREES" in out and "to fix, send these lines" in out
+    code, out, err = run(["machines", "check", machine, "--port", url(tmp_path, machine, setting), "--apply",
+                          "--yes"], capsys)
+    assert code == 0, err
+    assert PERSISTENCE[_kind(machine)] in out
+
+
+@pytest.mark.parametrize("machine", on_a_pty(bundled_machines()))
+def test_every_bundled_machine_mis_set_with_simulate_set_is_found_over_its_pty(tmp_path, machine):
+    """``stringbot simulate --machine M --set ...`` in one process, ``machines check M --port PTY``
+    in another, as a user practises on a mis-set machine."""
+    import signal
+    import subprocess
+
+    setting = fs.PRESET_EXAMPLES[_kind(machine)]
+    pty = tmp_path / "tty"
+    sim = subprocess.Popen(["stringbot", "simulate", "--machine", machine, "--pty", str(pty), "--set", setting],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = sim.stdout.readline()
+        assert line.startswith(f"simulating {machine} on {pty}"), sim.stderr.read() if not line else line
+        check = subprocess.run(["stringbot", "machines", "check", machine, "--port", str(pty)],
+                               capture_output=True, text=True, timeout=50)
+    finally:
+        sim.send_signal(signal.SIGINT)
+        _, err = sim.communicate(timeout=20)
+    assert "Traceback" not in err
+    assert check.returncode == 1, check.stderr
+    assert "DISAGREES" in check.stdout
+    assert check.stderr == (f"stringbot: error: 1 setting(s) of the firmware disagree with machine file "
+                            f"{machine}\n")

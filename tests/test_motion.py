@@ -12,6 +12,7 @@ from firmware_protocol.machine import bundled_dir, load_machine, machine_from_di
 from stringbot.errors import BadInput
 from stringbot.motion import estimate, hook_steps, move_seconds, wrap_direction
 from stringbot.planner import Plan
+from bundled import MACHINES
 from test_gcode_replay import make_plan, random_sequence
 
 
@@ -153,7 +154,7 @@ def test_plan_type_is_the_planner_one():
     assert isinstance(make_plan([0, 1]), Plan)
 
 
-@pytest.mark.parametrize("name", ["grbl-ring", "grblhal-ring", "marlin-ring", "dynamixel-ring"])
+@pytest.mark.parametrize("name", MACHINES)
 @pytest.mark.parametrize("direction", ["auto", "cw", "ccw"])
 def test_hooking_moves_are_safe_by_construction(name, direction):
     """From the job's start (ring 0, head IN) every move is one axis only, the ring turns only

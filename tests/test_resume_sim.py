@@ -18,6 +18,7 @@ from stringbot.planner import write_plan
 from stringbot.winding import Job, read_journal, wind_plan
 from stringbot.winding.resume import resume_plan, status_lines
 
+from bundled import GCODE_MACHINES, LINE_KINDS, MACHINE_KINDS, POINTS, fault_point
 from scripted_operator import ScriptedOperator, world_looker
 from test_wind_sim import eyes_at, small_plan
 
@@ -91,29 +92,41 @@ def check_world(record, plan):
     assert [w["pin"] for w in rec["wraps"]] == plan.sequence
 
 
-# lines the firmware receives: $I (M115 and M110 on Marlin), G21, G90, G94, then per move
-# "G1 ..." + "G4 P0" ("M400"): these points fall on every kind of move, head out included
-POINTS = {"grbl-ring": [6, 9, 12, 15, 18, 21, 27, 41],
-          "marlin-ring": [8, 11, 14, 17, 20, 27],
-          "grblhal-ring": [20, 23, 29]}
-KINDS = ["disconnect", "reset", "power", "garble", "drop-ok", "error", "reboot", "ignore"]
-CASES = [(name, kind, n) for name, points in POINTS.items() for kind in KINDS for n in points
-         if name != "grblhal-ring" or kind in ("reset", "power", "disconnect")]
-# faults that strike a moving machine: halfway through the move the line commands
-MID_MOVE = [(name, f"{kind}", f"{n}+0.5") for name, points in POINTS.items() for n in points[1::2]
-            for kind in ("reset", "reboot", "power")]
+# every bundled G-code machine, every fault kind a resume gets past (the registries: tests/bundled.py),
+# at moves where the head is IN, mid-hook (OUT) and coming back IN; the machine kinds also halfway
+# through the move of a line (kind@N+0.5) with the head going OUT and mid-hook
+AT = {"machine": ("ring", "hook", "in"), "line": ("hook", "hook-sync")}
+MID = ("out", "hook")
+CASES = [(name, kind, point, "") for name in GCODE_MACHINES for kind in MACHINE_KINDS + LINE_KINDS
+         for point in AT["machine" if kind in MACHINE_KINDS else "line"]]
+MID_MOVE = [(name, kind, point, "+0.5") for name in GCODE_MACHINES for kind in MACHINE_KINDS for point in MID]
+# the full set, slow: every kind at every kind of move
+FULL = [(name, kind, point, mid) for name in GCODE_MACHINES for kind in MACHINE_KINDS + LINE_KINDS
+        for point in POINTS for mid in ("", "+0.5") if not (mid and (kind in LINE_KINDS or point == "hook-sync"))
+        if (name, kind, point, mid) not in CASES + MID_MOVE]
 
 
-@pytest.mark.parametrize("name, kind, n", CASES + MID_MOVE)
-def test_fault_then_resume_winds_the_plan_exactly(tmp_path, name, kind, n):
-    job, plan, record = make_job(tmp_path, name, f"{kind}@{n}")
+def _fault_then_resume(tmp_path, name, kind, point, mid):
+    n = fault_point(name, small_plan(n=12, seed=3), point)
+    job, plan, record = make_job(tmp_path, name, f"{kind}@{n}{mid}")
     wind_to_the_end(job, record)
     check_world(record, plan)
     assert read_journal(job.journal_path).finished
 
 
-@pytest.mark.parametrize("name, at_step", [("grbl-ring", 1), ("grbl-ring", 4), ("grbl-ring", 9),
-                                           ("marlin-ring", 3), ("grblhal-ring", 5)])
+@pytest.mark.parametrize("name, kind, point, mid", CASES + MID_MOVE)
+def test_fault_then_resume_winds_the_plan_exactly(tmp_path, name, kind, point, mid):
+    _fault_then_resume(tmp_path, name, kind, point, mid)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, kind, point, mid", FULL)
+def test_fault_at_every_kind_of_move_then_resume_winds_the_plan_exactly(tmp_path, name, kind, point, mid):
+    _fault_then_resume(tmp_path, name, kind, point, mid)
+
+
+@pytest.mark.parametrize("name, at_step", [("grbl-ring", 1), ("grbl-ring", 9)]
+                         + [(name, 4) for name in GCODE_MACHINES])
 def test_ctrl_c_then_resume(tmp_path, name, at_step):
     job, plan, record = make_job(tmp_path, name, None)
 

@@ -12,6 +12,7 @@ import subprocess
 
 import pytest
 
+from bundled import on_a_pty
 from planner_helpers import for_machine
 from stringbot.planner.plan_file import write_plan
 from test_colour_plan import colour_plan
@@ -54,7 +55,7 @@ def seen(sim):
     return [(w["pin"], w.get("color")) for w in rec["wraps"]], rec
 
 
-@pytest.mark.parametrize("machine", ["grbl-ring", "marlin-ring", "dynamixel-ring"])
+@pytest.mark.parametrize("machine", on_a_pty(["grbl-ring", "marlin-ring", "dynamixel-ring"]))
 def test_yes_on_a_port_stops_at_each_spool_change_and_the_resume_goes_on_with_the_next_colour(tmp_path, machine):
     plan, path = plan_for(tmp_path, machine)
     journal = tmp_path / "c.journal"

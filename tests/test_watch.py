@@ -24,6 +24,7 @@ def plan_file(tmp_path):
     return path
 
 
+@pytest.mark.realtime
 def test_wind_without_a_terminal_prints_progress_lines(tmp_path):
     path = tmp_path / "three.json"
     write_plan(make_plan([0, 100, 200]), path)

@@ -94,14 +94,20 @@ def test_missing_plan_exits_2(tmp_path, capsys):
     assert code == 2 and "does not exist" in err
 
 
+@pytest.mark.realtime
 def test_ctrl_c_on_a_dry_run_exits_130_without_a_resume_hint(tmp_path, plan_path):
     """A real SIGINT to a realtime dry run: feed hold, one line, exit 130; no resume hint (a dry
     run cannot be resumed: --resume would refuse it)."""
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     cmd = [sys.executable, "-c", "import sys; from stringbot.cli import main; main(sys.argv[1:])",
            "wind", str(plan_path), "--machine", "grbl-ring", "--yes", "--realtime"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
-    time.sleep(2.5)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    journal = plan_path.with_name(plan_path.name + ".dry-run.journal")
+    deadline = time.monotonic() + 120            # Ctrl-C once a pin is wound, however loaded the computer
+    while proc.poll() is None and time.monotonic() < deadline and b'"kind":"done"' not in (
+            journal.read_bytes() if journal.exists() else b""):
+        time.sleep(0.01)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err

@@ -15,6 +15,8 @@ import pytest
 
 from stringbot.planner import write_plan
 
+from bundled import MACHINES, on_a_pty  # (puts benchmarks/ on the path: matrix_user)
+from matrix_user import homes
 from planner_helpers import for_machine
 from test_wind_sim import small_plan
 
@@ -76,14 +78,24 @@ def sim_factory(tmp_path):
         sim.stop()
 
 
+def steps_done(journal, n, proc, timeout=120):
+    """Wait until ``journal`` holds ``n`` executed steps (while ``proc`` runs)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if journal.exists() and journal.read_bytes().count(b'"kind":"done"') >= n:
+            return
+        time.sleep(0.01)
+    raise AssertionError(f"{n} step(s) not journaled (exit {proc.poll()})")
+
+
 def wind(plan_path, machine, port, journal, *extra, timeout=120):
     cmd = STRINGBOT + ["wind", str(plan_path), "--machine", machine, "--port", str(port), "--yes",
                        "--journal", str(journal)] + list(extra)
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
 
 
-HOMES = ("grblhal-ring", "marlin-ring")        # a start homes: the firmware that just started cannot say
-                                               # where the head is, so the operator does (--head-side in)
+# a start homes: the firmware that just started cannot say where the head is, so the operator does
+HOMES = tuple(m for m in MACHINES if homes(m))
 
 
 def first_wind(plan_path, machine, port, journal, *extra):
@@ -91,7 +103,7 @@ def first_wind(plan_path, machine, port, journal, *extra):
     return wind(plan_path, machine, port, journal, *(["--head-side", "in"] if machine in HOMES else []), *extra)
 
 
-@pytest.mark.parametrize("machine", ["grbl-ring", "grblhal-ring", "marlin-ring"])
+@pytest.mark.parametrize("machine", on_a_pty(MACHINES))
 def test_wind_through_a_pty(tmp_path, sim_factory, machine):
     plan = for_machine(small_plan(n=14, seed=11), machine)
     write_plan(plan, tmp_path / "plan.json")
@@ -112,6 +124,8 @@ def test_wind_through_a_pty(tmp_path, sim_factory, machine):
 @pytest.mark.parametrize("machine, faults", [("grbl-ring", "power@19"), ("marlin-ring", "disconnect@23"),
                                              ("grblhal-ring", "reset@26")])
 def test_fault_through_a_pty_then_resume(tmp_path, sim_factory, machine, faults):
+    """Three faults a --yes resume gets past (every machine through its pty, the guided way too:
+    tests/test_fault_matrix.py)."""
     plan = for_machine(small_plan(n=10, seed=12), machine)
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory(machine, faults)
@@ -131,40 +145,25 @@ def test_fault_through_a_pty_then_resume(tmp_path, sim_factory, machine, faults)
 
 
 def test_host_killed_with_sigkill_then_resume(tmp_path, sim_factory):
-    """SIGKILL at a few moments of a longer winding; --resume each time until done."""
-    plan = small_plan(n=800, seed=13)
+    """SIGKILL a few times mid-winding (once 3, 12 and 25 steps are journaled, a moment later: a
+    random fraction of a step); --resume each time until done."""
+    import random
+
+    from matrix_user import run_host
+    plan = small_plan(n=40, seed=13)
     write_plan(plan, tmp_path / "plan.json")
     sim = sim_factory("grbl-ring")
     journal = tmp_path / "j"
-    kills, finished = 0, False
-    resume = []
-    for delay in (1.2, 0.8, 1.0):
-        cmd = STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring", "--port",
-                           str(sim.pty), "--yes", "--journal", str(journal)] + resume
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        deadline = time.monotonic() + 60                 # a busy machine: the delay counts from the journal
-        while not journal.exists() and proc.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.01)
-        try:
-            proc.wait(timeout=delay)
-        except subprocess.TimeoutExpired:
-            proc.send_signal(signal.SIGKILL)
+    base = ["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring", "--port", str(sim.pty), "--yes",
+            "--journal", str(journal)]
+    kills, rng = 0, random.Random(13)
+    for after in (3, 12, 25, None):
+        rc, out, err, _ = run_host(base + (["--resume"] if journal.exists() else []), 120, after, journal, rng)
+        if rc == "killed":
             kills += 1
-        out, err = proc.communicate()
-        if proc.returncode == 0:
-            finished = True
-            break
-        assert proc.returncode == -signal.SIGKILL, err
-        resume = ["--resume"] if journal.exists() else []   # killed before it began: start again
-    if not finished:   # the last kill may have come after the journal's final record
-        status = subprocess.run(STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", "grbl-ring",
-                                             "--status", "--journal", str(journal)],
-                                capture_output=True, text=True, timeout=60)
-        assert status.returncode == 0, status.stderr
-        finished = "finished: all" in status.stdout
-    if not finished:
-        last = wind(tmp_path / "plan.json", "grbl-ring", sim.pty, journal, "--resume")
-        assert last.returncode == 0, last.stderr
+            continue
+        assert rc == 0 or "says the winding is finished" in err, err     # the last kill may come at its end
+        break
     sim.stop()
     pins, collisions = sim.wraps()
     assert kills >= 1
@@ -172,6 +171,7 @@ def test_host_killed_with_sigkill_then_resume(tmp_path, sim_factory):
     assert pins == plan.sequence
 
 
+@pytest.mark.realtime
 @pytest.mark.parametrize("machine", ["grbl-ring", "marlin-ring"])
 def test_ctrl_c_on_a_realtime_machine_then_resume(tmp_path, sim_factory, machine):
     """SIGINT mid-winding at real speed: exit 130 with the resume command; --resume finishes exactly."""
@@ -180,8 +180,9 @@ def test_ctrl_c_on_a_realtime_machine_then_resume(tmp_path, sim_factory, machine
     sim = sim_factory(machine, realtime=True)
     cmd = STRINGBOT + ["wind", str(tmp_path / "plan.json"), "--machine", machine, "--port", str(sim.pty),
                        "--yes", "--journal", str(tmp_path / "j")] + (["--head-side", "in"] if machine in HOMES else [])
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(2.0)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    steps_done(tmp_path / "j", 1, proc)          # Ctrl-C once a pin is wound, however loaded the computer
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err

@@ -29,7 +29,8 @@ linearly from head_in_ticks..head_out_ticks to head.in_mm..head.out_mm.
 
 Faults (``faults="power_loss@move=40, corrupt@packet=12"``, comma-separated;
 ``move=N`` is the N-th Goal Position write that starts a motion, counted from
-1 over both servos; the fault strikes halfway through that motion):
+1 over both servos (the same goal written again while the servo moves to it, as a host's retry
+does, is the same move); the fault strikes halfway through that motion):
 
 - ``power_loss@move=N[:off=S]``: servo power is cut for S virtual seconds (default 0.5).
 - ``silent@move=N[:id=I]``: servo I (default: the ring's) never answers again.
@@ -52,7 +53,7 @@ from firmware_protocol import dynamixel as dx
 from firmware_protocol.emulators.base import Emulator
 from firmware_protocol.emulators.dynamixel_servo import FIRMWARE_VERSION, Power, XServo
 
-__all__ = ["DynamixelEmulator", "XServo", "Fault", "parse_faults", "Power"]
+__all__ = ["DynamixelEmulator", "XServo", "Fault", "FaultKind", "FAULT_ALIASES", "parse_faults", "Power"]
 
 log = logging.getLogger(__name__)
 
@@ -79,7 +80,7 @@ class Fault:
     off_s: float = 0.5
 
 
-_ALIASES = {"power": "power_loss", "hardware": "hardware_error", "disconnect": "unplug"}
+FAULT_ALIASES = {"power": "power_loss", "hardware": "hardware_error", "disconnect": "unplug"}
 
 
 def parse_faults(spec):
@@ -97,7 +98,7 @@ def parse_faults(spec):
             continue
         try:
             kind_text, _, rest = item.partition("@")
-            kind = FaultKind(_ALIASES.get(kind_text.strip(), kind_text.strip()))
+            kind = FaultKind(FAULT_ALIASES.get(kind_text.strip(), kind_text.strip()))
             where = "packet" if kind is FaultKind.CORRUPT else "move"
             parts = rest.split(":")
             if parts[0].isdigit():                    # the short form kind@N
@@ -374,5 +375,6 @@ class DynamixelEmulator(Emulator):
         err = servo.write(address, data, self.now)
         if reply:
             self._send(servo, err)
-        if servo.motion is not None and servo.motion is not before:
-            self._motion_started(servo)
+        if servo.motion is not None and servo.motion is not before and (before is None
+                                                                        or servo.motion.goal != before.goal):
+            self._motion_started(servo)     # the same goal written again (a host's retry) is the same move

@@ -15,7 +15,7 @@ import enum
 import logging
 import math
 
-from ..faults import BOOT_SECONDS, DISCONNECT_SECONDS, POWER_OFF_SECONDS, FaultPlan
+from ..faults import BOOT_SECONDS, DISCONNECT_SECONDS, FAULT_KINDS, MACHINE_KINDS, POWER_OFF_SECONDS, FaultPlan
 from .base import Emulator
 from .motion import MotionQueue
 
@@ -262,7 +262,7 @@ class GcodeFirmware(Emulator):
         to apply (``error``, ``drop-ok``, ``ignore``); or None when the line is gone.
         """
         kinds = self.faults.next_line()
-        for kind in ("power", "disconnect", "reboot", "reset", "freeze"):
+        for kind in MACHINE_KINDS:              # in order of precedence: the first takes the line
             if kind in kinds:
                 self._fire_kind(kind, f"line={self.faults.lines}")
                 return None
@@ -292,18 +292,21 @@ class GcodeFirmware(Emulator):
             self._note(kind, at=at, skipped=f"the firmware is {self.power.value}")
             return
         log.info("fault %s@%s at t=%.4f", kind, at, self.now)
-        self._note({"power": "power off", "disconnect": "port down"}.get(kind, kind), at=at,
-                   moving=self.motion.moving)
-        if kind == "power":
-            self._port_down(Power.OFF, POWER_OFF_SECONDS)
-        elif kind == "disconnect":
-            self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
-        elif kind == "reboot":
-            self._reboot()
-        elif kind == "freeze":
-            self._freeze()
-        else:
-            self._fault_reset()
+        self._note(FAULT_KINDS[kind].event or kind, at=at, moving=self.motion.moving)
+        getattr(self, "_fault_" + kind.replace("-", "_"))()
+
+    # the machine kinds of firmware_protocol.faults.FAULT_KINDS, each fired by _fault_<name>
+    def _fault_power(self):
+        self._port_down(Power.OFF, POWER_OFF_SECONDS)
+
+    def _fault_disconnect(self):
+        self._port_down(Power.UNPLUGGED, DISCONNECT_SECONDS)
+
+    def _fault_reboot(self):
+        self._reboot()
+
+    def _fault_freeze(self):
+        self._freeze()
 
     def _port_down(self, power, seconds):
         log.info("fault: port down (%s) for %.2f s", power.value, seconds)

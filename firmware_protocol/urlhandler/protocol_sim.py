@@ -133,10 +133,11 @@ def session(url):
         opts = parse_url(url)
         from ..emulators.factory import SimulatorError, build_emulator
         from ..faults import parse_faults
+        from ..kinds import kind_of
         from ..machine import MachineFileError, load_machine
         try:
             machine = load_machine(opts["machine"])
-            if machine["controller.kind"] == "gcode":
+            if kind_of(machine).faults == "gcode":      # a servo bus checks its own
                 parse_faults(opts["faults"])
             emulator, world = build_emulator(machine, record=opts["record"], faults=opts["faults"] or None,
                                              settings=opts["set"])

@@ -7,6 +7,7 @@ Heavy modules (numpy, scipy, PIL) are imported inside the commands: startup coun
 import click
 
 from ..errors import BadInput
+from ..planner.methods import DEFAULT_METHOD, METHODS, method_help
 from . import cli, log
 
 #: side of the preview `plan` writes (as woven)
@@ -31,10 +32,8 @@ class _Lines(click.ParamType):
               help="Plan file to write (JSON).")
 @click.option("--preview", type=click.Path(path_type=str), default=None,
               help="Preview PNG to write [default: the plan's path with .png].")
-@click.option("--method", type=click.Choice(["residual", "fitness", "greedy"]), default="residual",
-              show_default=True,
-              help="residual: chords chosen by what the picture as woven still lacks, then refined; fitness: the "
-                   "paper's method; greedy: ThreadTone as published.")
+@click.option("--method", type=click.Choice(list(METHODS)), default=DEFAULT_METHOD, show_default=True,
+              help=method_help())
 @click.option("--disconnected", is_flag=True, help="A chord set by priority queue (fitness only); cannot be wound.")
 @click.option("--pins", type=int, default=None, help="Pins on the frame [default: 300, or the machine's].")
 @click.option("--machine", default=None,

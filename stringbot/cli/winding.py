@@ -3,6 +3,8 @@
 import sys
 
 import click
+from firmware_protocol.faults import FAULT_KINDS, FAULTS_HELP
+from firmware_protocol.kinds import KINDS
 
 from ..errors import BadInput, Interrupted, MachineFailure, SpoolChange
 from . import cli
@@ -39,7 +41,8 @@ def _resume_command(plan, machine_name, port, journal, *extra):
                    "without --yes to be guided).")
 @click.option("--status", "show_status", is_flag=True,
               help="Show the journal's state and exit (without --port: the real winding's journal if any).")
-@click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...).")
+@click.option("--faults", default=None, help="Dry run: faults for the simulated machine (kind@N,...; kinds "
+              + ", ".join(FAULT_KINDS) + ": see stringbot simulate --help).")
 @click.option("--realtime", is_flag=True, help="Dry run: the simulated machine moves at real speed.")
 @click.option("--progress-every", type=click.FloatRange(min=0.1), default=None, metavar="SECONDS",
               help="Print a progress line (step, pin, elapsed, ETA) this often instead of the bar "
@@ -211,13 +214,10 @@ def _summary(result, machine):
 @click.option("--record", default=None, type=click.Path(dir_okay=False),
               help="Write the world's record (wraps, collisions) to this JSON file.")
 @click.option("--realtime", is_flag=True, help="Move at real speed (default: as fast as possible).")
-@click.option("--faults", default=None, help="Faults to inject, a comma list: kind@N (as line N arrives), "
-                                             "kind@N+F (F of line N's move done), kind@t=SECONDS, kind@N..M; "
-                                             "kinds reset, reboot, power, disconnect, freeze, garble, drop-ok, error, "
-                                             "ignore (docs/simulator.md).")
+@click.option("--faults", default=None, help=FAULTS_HELP)
 @click.option("--set", "settings", multiple=True, metavar="SETTING",
-              help="Start the firmware with this setting instead of the machine file's (repeatable): "
-                   "'$100=40' (GRBL, grblHAL), 'M92 A40' (Marlin), 'ring:Drive Mode=1' (Dynamixel ID:ITEM=VALUE).")
+              help="Start the firmware with this setting instead of the machine file's (repeatable), e.g. "
+                   + ", ".join(f"'{k.set_example}' ({k.title})" for k in KINDS.values()) + ".")
 @click.option("--tie-on", "tie_on", default=None, metavar="COLOUR",
               help="Do not serve: be the operator's hands at the simulator already serving on --pty, tying "
                    "a thread of COLOUR (a name or #rrggbb) on, then exit (a colour plan's spool change).")

@@ -3,7 +3,7 @@
 ``open_port(url)`` opens a port (one clear line when it cannot); a link takes
 the open port object and speaks one firmware's protocol over it:
 
-- :class:`GrblLink` (GRBL 1.1, grblHAL): character counting against the
+- :class:`GrblLink` (GRBL 1.1, grblHAL, FluidNC): character counting against the
   receive buffer, ``G4 P0`` syncs, ``?`` status, ``!`` feed hold.
 - :class:`MarlinLink`: line numbers, checksums, resends, ``M400`` syncs.
 
@@ -15,22 +15,13 @@ from ..errors import BadInput
 from .base import FirmwareInfo, LinkState, Status, Where, strip_comment
 from .grbl import GrblLink, parse_status
 from .marlin import MarlinLink
+from .kinds import gcode_link, machine_kind
 from .job import GcodeMachineLink, gcode_machine_link
 from .ports import open_port, sim_url
 
-__all__ = ["open_port", "sim_url", "gcode_link", "open_link", "GcodeMachineLink", "gcode_machine_link", "GrblLink", "MarlinLink", "LinkState",
-           "FirmwareInfo", "Status", "Where", "strip_comment", "parse_status"]
-
-
-def gcode_link(port, machine, **options):
-    """The G-code link for ``machine``'s dialect over an open ``port``."""
-    dialect = machine["controller.dialect"]
-    if dialect in ("grbl", "grblhal", "fluidnc"):
-        return GrblLink(port, dialect, **options)
-    if dialect == "marlin":
-        return MarlinLink(port, **options)
-    raise BadInput(f"machine {machine.name!r} has controller.dialect {dialect!r}; "
-                   "expected 'grbl', 'grblhal', 'fluidnc' or 'marlin' for a G-code link")
+__all__ = ["open_port", "sim_url", "gcode_link", "open_link", "GcodeMachineLink", "gcode_machine_link", "GrblLink",
+           "MarlinLink", "LinkState", "FirmwareInfo", "Status", "Where", "strip_comment", "parse_status",
+           "machine_kind"]
 
 
 def open_link(url, machine, **options):
@@ -39,13 +30,13 @@ def open_link(url, machine, **options):
     G-code machines get a :class:`GcodeMachineLink`; a ``kind = "dynamixel"``
     machine gets the servo link of ``stringbot.links.dynamixel`` when present.
     """
-    kind = machine["controller.kind"]
-    if kind == "dynamixel":
+    if not machine_kind(machine).gcode:
         try:
             from . import dynamixel
-        except ImportError:
-            raise BadInput(f"machine {machine.name!r} is a Dynamixel machine; this build has no "
-                           "Dynamixel link yet") from None
+        except ImportError as exc:
+            raise BadInput(f"machine {machine.name!r} is a Dynamixel machine, but the Dynamixel link cannot "
+                           f"be loaded ({exc}); expected the dynamixel-sdk package (pip install "
+                           "dynamixel-sdk)") from None
         return dynamixel.open_dynamixel_link(url, machine, **options)
     port = open_port(url, baudrate=machine["controller.baud"])
     try:

@@ -109,6 +109,13 @@ class LineLink:
         self.bytes_sent = 0
         self.position_lost = False    # the firmware reset or alarmed: its position is not to be trusted
 
+    #: the link's :class:`firmware_protocol.kinds.FirmwareKind` (set by the subclass)
+    kind = None
+
+    def restarted(self, line):
+        """``line`` is the firmware's start-up line: it (re)started, its position may be lost."""
+        return self.kind is not None and self.kind.is_banner(line)
+
     # ---- failures -----------------------------------------------------------------------
     def fail(self, message, where=None):
         """Mark the link failed and return the exception to raise (naming step and pin)."""

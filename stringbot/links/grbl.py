@@ -1,4 +1,4 @@
-"""The GRBL / grblHAL link: character counting, status reports, feed hold.
+"""The GRBL / grblHAL / FluidNC link: character counting, status reports, feed hold.
 
 Streaming follows GRBL's own interface document: the host keeps the count of
 bytes it has sent that the firmware has not yet answered (``ok`` or
@@ -27,65 +27,51 @@ import time
 from collections import deque
 
 from firmware_protocol import grbl as grbl_codes
+from firmware_protocol.kinds import get_kind
 
-from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment, where_of
+from .base import LineLink, LinkState, Status, Where, strip_comment, where_of
+from .grbl_identify import GrblIdentify
 
 __all__ = ["GrblLink", "parse_status"]
 
 log = logging.getLogger(__name__)
 
-_BANNER = re.compile(r"^(Grbl|GrblHAL|grblHAL)\s+(\S+)", re.IGNORECASE)
-_OPT = re.compile(r"^\[OPT:([^,\]]*),(\d+),(\d+)")
-_VER = re.compile(r"^\[VER:([^:\]]*)")
-DEFAULT_RX = {"grbl": 128, "grblhal": 1024, "fluidnc": 128}
-_FLUIDNC = re.compile(r"FluidNC\s+(v?[\w.\-]+)")   # in its banner and in $I's [VER:3.7 FluidNC v3.7.8:]
-_NAMES = {"grbl": "GRBL", "grblhal": "grblHAL", "fluidnc": "FluidNC"}
 _RESET = b"\x18"
 _PROBE = "$G"                          # answered [GC:...] + ok, once every earlier line is done
 _PROBE_BYTES = len(_PROBE) + 1
 _GC = re.compile(r"^\[(GC:|G\d)")      # $G's answer (GRBL 1.1 / 0.9)
-_SETTING = re.compile(r"^\$(\d+)=(-?\d+(?:\.\d*)?)")
 
 
 def parse_status(line):
-    """``<Idle|MPos:1.000,2.000,0.000|Bf:15,128|FS:0,0>`` -> :class:`Status` (GRBL 1.1 and 0.9 forms)."""
-    body = line.strip()[1:-1]
-    parts = body.split("|") if "|" in body else body.split(",", 1)
-    state, _, sub = parts[0].partition(":")
-    fields = {}
-    for part in parts[1:]:
-        key, _, value = part.partition(":")
-        fields[key] = value
-    pos = fields.get("MPos") or fields.get("WPos")
-    mpos = None
-    if pos:
-        try:
-            mpos = tuple(float(v) for v in pos.split(","))
-        except ValueError:
-            mpos = None
-    return Status(state=state, sub=sub, mpos=mpos, fields=fields)
+    """``<Idle|MPos:1.000,2.000,0.000|Bf:15,128|FS:0,0>`` -> :class:`Status` (GRBL 1.1 and 0.9 forms,
+    by the family's one parser, :func:`firmware_protocol.grbl.parse_status`; a malformed position
+    is None)."""
+    st = grbl_codes.parse_status(line, strict=False) or grbl_codes.Status(state=line.strip()[1:-1])
+    sub = "" if st.substate is None else str(st.substate)
+    return Status(state=st.state, sub=sub, mpos=st.mpos or st.wpos, fields=st.fields)
 
 
-class GrblLink(LineLink):
+class GrblLink(GrblIdentify, LineLink):
     """A G-code link to GRBL 1.1 or grblHAL.
 
     Parameters
     ----------
     port : an open pyserial port
-    dialect : "grbl", "grblhal" or "fluidnc", the machine file's ``controller.dialect``
-    sync_line : the line whose answer means "all motion finished" (``G4 P0``)
+    dialect : a GRBL-family kind of :data:`firmware_protocol.kinds.KINDS` (``controller.dialect``)
+    sync_line : the line whose answer means "all motion finished" (default: the kind's, ``G4 P0``)
     lookahead : how many steps beyond the last executed one may be sent
     """
 
-    def __init__(self, port, dialect="grbl", *, sync_line="G4 P0", lookahead=1,
+    def __init__(self, port, dialect="grbl", *, sync_line=None, lookahead=1,
                  response_timeout=3.0, motion_timeout=600.0, poll_interval=0.5):
         super().__init__(port, response_timeout=response_timeout)
         self.dialect = dialect
-        self.sync_line = sync_line
+        self.kind = get_kind(dialect)
+        self.sync_line = sync_line or self.kind.sync_line
         self.lookahead = lookahead
         self.motion_timeout = motion_timeout
         self.poll_interval = poll_interval
-        self.rx_size = DEFAULT_RX.get(dialect, 128)
+        self.rx_size = self.kind.rx_buffer
         self.planner_blocks = 0
         self._inflight = deque()      # (nbytes, Where) for lines sent and not yet answered
         self._inflight_bytes = 0
@@ -97,129 +83,6 @@ class GrblLink(LineLink):
         self._probe = None            # the Where of the $G probe in flight, if any
         self._probe_seen = False      # its [GC:...] arrived: every line before it is done
         self.settings = None          # the firmware's $$ once read (read_settings)
-
-    # ---- identification --------------------------------------------------------------
-    def identify(self):
-        """Find out who answers; refuse anything that is not the machine's dialect.
-
-        Reads the banner if the firmware prints one on connect, then asks ``$I``.
-        """
-        seen = self.drain_input(quiet=0.05, limit=2.5)
-        answer = self._ask("$I", seen)
-        lines = tuple(seen) + tuple(answer)
-        name, version, rx, blocks = "", "", 0, 0
-        for line in lines:
-            m = _BANNER.match(line)
-            if m:
-                name, version = m.group(1), m.group(2)
-            m = _VER.match(line)
-            if m and not version:
-                version = m.group(1)
-            m = _OPT.match(line)
-            if m:
-                blocks, rx = int(m.group(2)), int(m.group(3))
-            if line.upper().startswith("[FIRMWARE:GRBLHAL"):
-                name = "grblHAL"
-        joined = " ".join(lines)
-        if "Marlin" in joined or "FIRMWARE_NAME" in joined or "Unknown command" in joined:
-            raise self.fail(f"the machine runs Marlin, but machine file says {self.dialect!r}; "
-                            "use a machine file for Marlin or check the port")
-        if not name and not any(_VER.match(x) for x in lines):
-            busy = self._busy_state(lines)
-            if busy:
-                raise self.fail(busy)
-            if lines:
-                raise self.fail(f"the device on the port is not GRBL or grblHAL; it answered {lines[0][:60]!r}")
-            raise self.fail("no answer from the machine (expected GRBL's banner or $I); "
-                            "check the port, the baud rate and that the machine is on")
-        found = "grblhal" if name.lower() == "grblhal" or "grblHAL" in joined else "grbl"
-        m = _FLUIDNC.search(joined)
-        if m:                                  # FluidNC says "Grbl 3.7 [FluidNC v3.7.8 ...]"
-            found, name, version = "fluidnc", "FluidNC", m.group(1)
-        if found != self.dialect:
-            raise self.fail(f"the machine runs {_NAMES[found]} {version}, but the machine file says "
-                            f"dialect {self.dialect!r}")
-        if rx:
-            # GRBL 1.1 reports the usable size; keep one byte of margin for GRBL's ring buffer
-            self.rx_size = rx - 1 if found == "grbl" and rx == 128 else rx
-        if blocks:
-            self.planner_blocks = blocks
-        self.info = FirmwareInfo(dialect=found, name=name or "Grbl", version=version,
-                                 rx_buffer=self.rx_size, lines=lines)
-        self.state = LinkState.IDENTIFIED
-        log.info("firmware: %s %s, receive buffer %d bytes", self.info.name, version, self.rx_size)
-        return self.info
-
-    def _busy_state(self, lines):
-        """A GRBL that refuses ``$I`` (``error:8``, not idle) because it holds or runs: say so."""
-        if not any(x.startswith("error") for x in lines):
-            return None
-        try:
-            self.write(b"?")
-            for _ in range(5):
-                line = self.readline(self.response_timeout)
-                if line is None:
-                    return None
-                if line.startswith("<"):
-                    st = parse_status(line)
-                    break
-            else:
-                return None
-        except Exception:
-            return None
-        if st.state == "Hold":
-            return ("the machine is GRBL in Hold (a feed hold is waiting, so it answers nothing else): "
-                    "send ~ to let it go on, or reset it (Ctrl-X), then run again")
-        if st.state in ("Run", "Jog", "Home"):
-            return (f"the machine is GRBL, busy ({st.state}): another program may be running a job on it; "
-                    "wait for it or stop it, then run again")
-        if st.state == "Door":
-            return "the machine is GRBL with its safety door open: close it, then run again"
-        return None
-
-    def _ask(self, text, seen):
-        """Send a query in send-response fashion.
-
-        A banner arriving meanwhile means the board (re)started: the query may
-        have been lost in the reset (a real Arduino resets when its port opens),
-        so it is sent once more if no answer follows soon after the banner.
-        """
-        self.write(text.encode("ascii") + b"\n")
-        lines = []
-        deadline = time.monotonic() + self.response_timeout
-        resent = banner = False
-        while True:
-            line = self.readline(max(0.0, deadline - time.monotonic()))
-            if line is None:
-                if banner and not resent:
-                    resent = True
-                    self.write(text.encode("ascii") + b"\n")
-                    deadline = time.monotonic() + self.response_timeout
-                    continue
-                return lines
-            if line.startswith("ok") or line.startswith("error"):
-                lines.append(line)
-                return lines
-            if _BANNER.match(line):
-                seen.append(line)
-                lines = []
-                banner = True
-                deadline = min(deadline, time.monotonic() + 0.5)
-                continue
-            lines.append(line)
-
-    def read_settings(self):
-        """``$$``: the firmware's settings as ``{number: value}`` (e.g. ``{100: 44.444, ...}``).
-
-        Sent between jobs (nothing in flight).  A firmware that answers none gives ``{}``.
-        """
-        settings = {}
-        for line in self._ask("$$", []):
-            m = _SETTING.match(line)
-            if m:
-                settings[int(m.group(1))] = float(m.group(2))
-        self.settings = settings
-        return settings
 
     # ---- state -----------------------------------------------------------------------
     def status(self, timeout=None):
@@ -483,7 +346,7 @@ class GrblLink(LineLink):
             raise self.fail(f"the machine raised {_alarm_words(code) if code is not None else line}")
         elif line.startswith("<"):
             self._status(line)
-        elif _BANNER.match(line):
+        elif self.restarted(line):
             self.position_lost = True
             if self.state is not LinkState.STREAMING and self.state is not LinkState.READY:
                 log.info("the firmware (re)started: %s", line)

@@ -32,7 +32,6 @@ from ..motion.positions import position_tolerance
 from .base import where_of
 from .grbl import GrblLink
 from .job_recovery import GcodeRecovery
-from .marlin import MarlinLink
 
 __all__ = ["GcodeMachineLink", "gcode_machine_link"]
 
@@ -60,7 +59,7 @@ class GcodeMachineLink(GcodeRecovery):
         self.proto = proto
         self.machine = machine
         self.dialect = dialect_for(machine)
-        self.axes = _axis_order(machine)
+        self.axes = proto.kind.status_axes(machine["controller.ring_axis"], machine["controller.head_axis"])
         self.sync = sync
         self.verify = verify
         self.on_move = None             # callable(step, move_index) once a move is executed
@@ -394,24 +393,11 @@ def _point(move):
     return (move.ring_deg, move.head_mm) if isinstance(move, Move) else tuple(move)
 
 
-def _axis_order(machine):
-    dialect = machine["controller.dialect"]
-    if dialect == "grbl":
-        return "XYZ"
-    if dialect in ("grblhal", "fluidnc"):
-        return "XYZA" if "A" in (machine["controller.ring_axis"], machine["controller.head_axis"]) \
-            else "XYZ"
-    return "XYZA"
-
-
 def gcode_machine_link(port, machine, **options):
     """The step-level link for a G-code ``machine`` over an open ``port``."""
+    from .kinds import gcode_link
+
     sync = options.pop("sync", "move")
     verify = options.pop("verify", True)
-    dialect = machine["controller.dialect"]
-    if dialect in ("grbl", "grblhal", "fluidnc"):
-        proto = GrblLink(port, dialect, **options)
-    else:
-        proto = MarlinLink(port, **options)
-    return GcodeMachineLink(proto, machine, sync=sync, verify=verify)
+    return GcodeMachineLink(gcode_link(port, machine, **options), machine, sync=sync, verify=verify)
 

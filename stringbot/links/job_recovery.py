@@ -65,7 +65,7 @@ class GcodeRecovery:
         self._read_settings()
         lines = list(said) + list(info.lines)
         seen = Reconnected(said=lines)
-        seen.banner = proto.position_lost or any(started(x) for x in lines)
+        seen.banner = proto.position_lost or any(proto.restarted(x) for x in lines)
         alarms = [x for x in lines if x.startswith("ALARM")]
         seen.alarm = alarms[-1] if alarms else None
         if grbl:
@@ -176,6 +176,7 @@ def _one_axis(link, move, axis):
 
 
 def started(line):
-    """A line a firmware prints when it (re)starts."""
-    from firmware_protocol.grbl import is_banner
-    return bool(line) and (is_banner(line) or line.strip() == "start")
+    """A line a firmware of any kind prints when it (re)starts: a banner of the records
+    (:mod:`firmware_protocol.kinds`; the link's own kind: ``proto.restarted``)."""
+    from firmware_protocol.kinds import KINDS
+    return bool(line) and any(k.is_banner(line) for k in KINDS.values())

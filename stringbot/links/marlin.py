@@ -29,7 +29,9 @@ import logging
 import re
 import time
 
+from firmware_protocol import grbl as grbl_codes
 from firmware_protocol import marlin as marlin_codes
+from firmware_protocol.kinds import get_kind
 
 from .base import FirmwareInfo, LineLink, LinkState, Status, Where, strip_comment, where_of
 
@@ -81,10 +83,11 @@ class MarlinLink(LineLink):
 
     dialect = "marlin"
 
-    def __init__(self, port, dialect="marlin", *, sync_line="M400", response_timeout=3.0,
+    def __init__(self, port, dialect="marlin", *, sync_line=None, response_timeout=3.0,
                  motion_timeout=600.0, max_resends=5):
         super().__init__(port, response_timeout=response_timeout)
-        self.sync_line = sync_line
+        self.dialect, self.kind = dialect, get_kind(dialect)
+        self.sync_line = sync_line or self.kind.sync_line
         self.motion_timeout = motion_timeout
         self.max_resends = max_resends
         self.line_number = 0
@@ -109,17 +112,19 @@ class MarlinLink(LineLink):
                 break
         lines = tuple(seen) + tuple(answer)
         joined = " ".join(lines)
-        if re.search(r"\bGrbl", joined, re.IGNORECASE) or "[VER:" in joined or \
+        grbl = grbl_codes.identify(lines)
+        if grbl is not None or re.search(r"\bGrbl", joined, re.IGNORECASE) or \
                 any(x.startswith("error:") for x in answer):
-            raise self.fail("the machine runs GRBL, but the machine file says dialect 'marlin'; "
-                            "use a machine file for GRBL or check the port")
-        m = re.search(r"FIRMWARE_NAME:\s*Marlin\s*([^\s(]*)", joined)
-        if not m:
+            title = grbl.title if grbl is not None else "GRBL"
+            raise self.fail(f"the machine runs {title}, but the machine file says dialect {self.dialect!r}; "
+                            f"use a machine file for {title} or check the port")
+        version = self.kind.found_in(lines)
+        if version is None:
             if lines:
-                raise self.fail(f"the device on the port is not Marlin; it answered {lines[0][:60]!r}")
-            raise self.fail("no answer from the machine (expected Marlin's answer to M115); "
+                raise self.fail(f"the device on the port is not {self.kind.title}; it answered {lines[0][:60]!r}")
+            raise self.fail(f"no answer from the machine (expected {self.kind.title}'s answer to M115); "
                             "check the port, the baud rate and that the machine is on")
-        self.info = FirmwareInfo(dialect="marlin", name="Marlin", version=m.group(1), lines=lines)
+        self.info = FirmwareInfo(dialect=self.kind.name, name=self.kind.title, version=version, lines=lines)
         self._reset_numbers()
         self.state = LinkState.IDENTIFIED
         log.info("firmware: Marlin %s", self.info.version)
@@ -318,7 +323,7 @@ class MarlinLink(LineLink):
             if low.startswith("echo:unknown command"):
                 self.stop_quietly()
                 raise self.fail(f"the machine did not understand a line: {line[5:80]!r}", where)
-            if low == "start" or low.startswith("echo:marlin") or low.startswith("marlin "):
+            if self.restarted(line) or low.startswith("echo:marlin") or low.startswith("marlin "):
                 self.position_lost = True
                 raise self.fail("the firmware reset itself mid-job (it printed its start banner); "
                                 "its position may be lost", where)

@@ -2,7 +2,7 @@
 
 Over a link that is open (and identified here if it is not yet):
 
-- GRBL / grblHAL: ``$$`` (identification reads it, after ``$I``);
+- GRBL / grblHAL / FluidNC: ``$$`` (identification reads it, after ``$I``);
 - Marlin: ``M503``;
 - Dynamixel: the control-table items of both servos (Operating Mode, Drive
   Mode, Velocity Limit, Position Limits) and their model numbers.
@@ -16,6 +16,7 @@ the report's fix lines, never unasked: the command line asks first.
 import logging
 
 from firmware_protocol import settings as fs
+from firmware_protocol.kinds import kind_of
 
 from ..errors import MachineFailure
 from .settings_rules import PERSISTENCE, Report, Row, Verdict, compare
@@ -47,8 +48,9 @@ def _disagreement(row):
     return f"{row.setting} is {row.firmware}, the machine file needs {row.needs}{fix}{hint}"
 
 
-def _link_kind(machine):
-    return "dynamixel" if machine["controller.kind"] == "dynamixel" else machine["controller.dialect"]
+def _rules(machine):
+    """Which settings rules the machine's kind of firmware follows (firmware_protocol.kinds)."""
+    return kind_of(machine).settings
 
 
 def read_firmware(link, machine, *, fresh=False):
@@ -58,8 +60,8 @@ def read_firmware(link, machine, *, fresh=False):
     """
     if link.info is None:
         link.identify()
-    kind = _link_kind(machine)
-    if kind == "dynamixel":
+    rules = _rules(machine)
+    if rules == "dynamixel":
         out = {}
         for role, servo_id in link.ids.items():
             servo = {"id": servo_id, "model": getattr(link.servos.get(servo_id), "model", None)}
@@ -68,7 +70,7 @@ def read_firmware(link, machine, *, fresh=False):
             out[role] = servo
         return out
     proto = link.proto
-    if kind == "marlin":
+    if rules == "marlin":
         return fs.parse_m503(proto.query("M503"))
     if proto.settings is None or fresh:
         proto.read_settings()
@@ -97,7 +99,7 @@ def require_agreement(link, machine):
 def apply_fixes(link, machine, lines):
     """Send ``lines`` (a report's :attr:`~Report.fixes`): G-code settings as lines the firmware
     answers ``ok``; Dynamixel ``ID:ITEM=VALUE`` as writes with that servo's torque off."""
-    if _link_kind(machine) != "dynamixel":
+    if _rules(machine) != "dynamixel":
         for line in lines:
             link.proto.command(line)
         return

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from firmware_protocol import dynamixel as dx
 from firmware_protocol import settings as fs
+from firmware_protocol.kinds import KINDS, kind_of
 
 __all__ = ["Verdict", "Row", "Report", "compare", "PERSISTENCE"]
 
@@ -38,16 +39,8 @@ class Row:
     hint: str = ""                 # what else to do (edit the machine file, rebuild)
 
 
-#: What becomes of a fix once sent, per firmware.
-PERSISTENCE = {
-    "grbl": "GRBL writes each setting to its EEPROM at once: it stays after a reset or a power cycle",
-    "grblhal": "grblHAL writes each setting to its non-volatile storage at once: it stays after a reset "
-               "or a power cycle",
-    "marlin": "Marlin keeps M92/M203/M201/M204 in RAM until M500 (sent last) stores them in EEPROM; "
-              "M211 S0 lasts until the next reset",
-    "dynamixel": "Drive Mode, Velocity Limit and the Position Limits are EEPROM items the servo keeps "
-                 "after power off; torque is turned off to write them (wind turns it on again)",
-}
+#: What becomes of a fix once sent, per kind of firmware (firmware_protocol.kinds).
+PERSISTENCE = {k.name: k.persistence for k in KINDS.values()}
 
 
 @dataclass
@@ -55,7 +48,7 @@ class Report:
     """The comparison of one firmware with one machine file."""
 
     machine: object
-    kind: str                      # "grbl", "grblhal", "marlin", "dynamixel"
+    kind: str                      # a name of firmware_protocol.kinds.KINDS
     rows: list
     save: tuple = ()               # lines that make the fixes stick (Marlin: M500)
     notes: list = field(default_factory=list)
@@ -87,13 +80,13 @@ def compare(machine, firmware):
     :class:`firmware_protocol.settings.MarlinSettings` for Marlin, and
     ``{"ring": {item: value, "id": i, "model": m}, "head": {...}}`` for Dynamixel.
     """
-    if machine["controller.kind"] == "dynamixel":
-        return Report(machine, "dynamixel", _dynamixel_rows(machine, firmware))
-    dialect = machine["controller.dialect"]
-    if dialect == "marlin":
+    kind = kind_of(machine)
+    if kind.settings == "dynamixel":
+        return Report(machine, kind.name, _dynamixel_rows(machine, firmware))
+    if kind.settings == "marlin":
         rows, notes = _marlin_rows(machine, firmware)
-        return Report(machine, "marlin", rows, save=("M500",), notes=notes)
-    return Report(machine, dialect, _grbl_rows(machine, firmware, dialect))
+        return Report(machine, kind.name, rows, save=("M500",), notes=notes)
+    return Report(machine, kind.name, _grbl_rows(machine, firmware, rotary=kind.settings == "grblhal"))
 
 
 def _close(value, need, decimals):
@@ -110,7 +103,7 @@ def _n(value):
 
 # ---- GRBL / grblHAL ------------------------------------------------------------------------------
 
-def _grbl_rows(m, s, dialect):
+def _grbl_rows(m, s, *, rotary):
     ring, head = m["controller.ring_axis"], m["controller.head_axis"]
     rows = []
 
@@ -148,7 +141,7 @@ def _grbl_rows(m, s, dialect):
         good = not inches
         rows.append(Row(fs.setting_label(fs.REPORT_INCHES), _n(inches), "0 (positions reported in mm)",
                         Verdict.OK if good else Verdict.DISAGREES, fix=() if good else ("$13=0",)))
-    if dialect == "grblhal" and ring in "ABC":
+    if rotary and ring in "ABC":           # grblHAL's $376 / $538
         rows += _rotary_rows(s, ring)
     return rows
 

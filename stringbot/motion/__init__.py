@@ -1,8 +1,8 @@
 """Motion: plan + machine -> hooking moves -> G-code (pure; no I/O).
 
-``hook_steps`` applies DESIGN.md's physical model of hooking a pin (see
+``hook_steps`` applies docs/design.md's physical model of hooking a pin (see
 :mod:`stringbot.motion.hooking` for the wrap-direction rule), ``dialect_for``
-and ``gcode_job`` write G-code for GRBL, grblHAL and Marlin, and ``estimate``
+and ``gcode_job`` write G-code for GRBL, grblHAL, FluidNC and Marlin, and ``estimate``
 gives machine time, ring travel and thread length.
 """
 

@@ -1,4 +1,4 @@
-"""Hooking moves -> G-code, per firmware dialect (GRBL 1.1, grblHAL, Marlin 2.1).
+"""Hooking moves -> G-code, per firmware dialect (GRBL 1.1, grblHAL, FluidNC, Marlin 2.1).
 
 The dialects differ only where the firmware does: axis letters (stock GRBL has
 X, Y, Z only, so its ring is a "linear" axis set to steps per degree), homing
@@ -19,8 +19,7 @@ a comment naming the thread to cut and the colour to tie on at which pin.
 from .estimate import estimate, format_duration
 from .hooking import hook_steps
 
-__all__ = ["GcodeDialect", "GrblDialect", "GrblHalDialect", "MarlinDialect", "dialect_for", "gcode_job",
-           "fmt"]
+__all__ = ["GcodeDialect", "GrblDialect", "MarlinDialect", "FLAVOURS", "dialect_for", "gcode_job", "fmt"]
 
 
 def fmt(value):
@@ -40,8 +39,10 @@ class GcodeDialect:
     name = "gcode"
     sync_line = "G4 P0"
 
-    def __init__(self, machine):
+    def __init__(self, machine, kind=None):
         self.machine = machine
+        if kind is not None:        # a firmware_protocol.kinds record: its name and sync line
+            self.name, self.sync_line = kind.name, kind.sync_line
         self.ring_axis = machine["controller.ring_axis"]
         self.head_axis = machine["controller.head_axis"]
 
@@ -143,21 +144,10 @@ class GcodeDialect:
 
 
 class GrblDialect(GcodeDialect):
-    """GRBL 1.1: X, Y, Z only; ``$H``; ``G4 P0`` as the sync point; ``M2`` ends."""
+    """GRBL's family (GRBL 1.1, grblHAL, FluidNC: the axes their kind has): ``$H``; ``G4 P0`` as
+    the sync point; ``M2`` ends."""
 
     name = "grbl"
-
-
-class GrblHalDialect(GcodeDialect):
-    """grblHAL: like GRBL, with rotary axes (the ring on ``A`` in degrees)."""
-
-    name = "grblhal"
-
-
-class FluidNcDialect(GcodeDialect):
-    """FluidNC (GRBL's protocol on an ESP32, often over telnet): like grblHAL, rotary A, B, C axes."""
-
-    name = "fluidnc"
 
 
 class MarlinDialect(GcodeDialect):
@@ -187,22 +177,31 @@ class MarlinDialect(GcodeDialect):
         return [self.sync(), f"M117 {message}", "M0"]
 
 
-_DIALECTS = {"grbl": GrblDialect, "grblhal": GrblHalDialect, "fluidnc": FluidNcDialect, "marlin": MarlinDialect}
+#: The G-code flavour of each family of firmware (``family`` of :mod:`firmware_protocol.kinds`).
+FLAVOURS = {"grbl": GrblDialect, "marlin": MarlinDialect}
 
 
 def dialect_for(machine):
-    """The G-code dialect object for a ``kind = "gcode"`` machine.
+    """The G-code dialect object for a ``kind = "gcode"`` machine: its family's flavour, with its
+    kind's name and sync line.
 
     Raises
     ------
     BadInput
-        For a machine that does not speak G-code (``kind = "dynamixel"``).
+        For a machine that does not speak G-code (``kind = "dynamixel"``), or of a kind the
+        records do not hold.
     """
+    from firmware_protocol.kinds import UnknownKind, kind_of
+
     from ..errors import BadInput
     if machine["controller.kind"] != "gcode":
         raise BadInput(f"machine {machine.name!r} has controller.kind = {machine['controller.kind']!r}; "
                        "expected 'gcode' to write G-code")
-    return _DIALECTS[machine["controller.dialect"]](machine)
+    try:
+        kind = kind_of(machine)
+    except UnknownKind as exc:
+        raise BadInput(f"machine {machine.name!r}: {exc}") from None
+    return FLAVOURS[kind.family](machine, kind)
 
 
 def gcode_job(plan, machine, *, plan_name=None):

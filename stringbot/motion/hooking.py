@@ -1,4 +1,4 @@
-"""Plan + machine -> hooking moves, by the physical model of DESIGN.md.
+"""Plan + machine -> hooking moves, by the physical model of docs/design.md.
 
 To hook pin ``j`` with wrap direction ``d`` (+1 or -1), with the head IN:
 
@@ -100,7 +100,7 @@ class HookStep:
     index: int
     pin: int
     direction: int
-    moves: list = field(default_factory=list)
+    moves: list[Move] = field(default_factory=list)
     dwell_s: float = 0.0
     total: int | None = None
 

@@ -1,6 +1,6 @@
 """Safe moves by construction: what a move may do, checked on the moves themselves.
 
-The physical model (DESIGN.md) allows three kinds of move:
+The physical model (docs/design.md) allows three kinds of move:
 
 * a **ring move**: the ring turns with the head fully IN or fully OUT (at
   ``head.in_mm`` or ``head.out_mm``), the head does not move;

@@ -1,5 +1,15 @@
-"""Planner: picture -> :class:`Plan` (the paper's fitness method and the greedy baseline)."""
+"""Planner: picture -> :class:`Plan` (the methods: :mod:`stringbot.planner.methods`).
 
-from .plan_file import Plan, read_plan, write_plan
+``Plan``, ``read_plan`` and ``write_plan`` are loaded on first use, so that the
+command line can read the method registry without numpy.
+"""
 
 __all__ = ["Plan", "read_plan", "write_plan"]
+
+
+def __getattr__(name):
+    if name in __all__:
+        from . import plan_file
+
+        return getattr(plan_file, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,8 +1,11 @@
 """Picture -> Plan: checks the knobs, runs the chosen method, records everything.
 
-Methods
+Methods (the registry: :mod:`stringbot.planner.methods`)
 -------
-``fitness`` (default)
+``residual`` (default)
+    Chords chosen by what the picture as woven still lacks, refined, then
+    polished against the piece as the eye sees it (docs/planner.md).
+``fitness``
     The paper's method: chord space, regularised least-squares fitness,
     connected sampling with error diffusion (or, ``disconnected=True``, the
     priority-queue chord set).  Its knobs beta, gamma and T come in two
@@ -28,6 +31,7 @@ import numpy as np
 from ..errors import BadInput
 from .chords import chord_space, pixel_chords
 from .image import read_mask, read_picture
+from .methods import DEFAULT_METHOD, Job, get_method, methods_taking
 from .plan_file import Plan
 from .progress import report
 
@@ -42,11 +46,8 @@ DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, 
             "iterations": 25, "refine": 300, "polish": 1000, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
             "greedy_reference_radius": 500.0}
 MAX_PINS = 2000
-#: ThreadTone's working size: a picture of radius 500 px.
-GREEDY_SIZE = 1001
 MIN_SIZE, MAX_SIZE = 32, 2001
 MAX_LINES = 100_000
-METHODS = ("residual", "fitness", "greedy")
 STYLES = ("auto", "detail", "fill")
 #: Points per frame side at which the residual choice samples each chord: a plan with a line count is
 #: judged pixel by pixel at the working size (every pixel at 401 px); the first draft of a plan to be
@@ -72,8 +73,7 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
     """Raise BadInput naming the first knob out of range (None: a knob not given)."""
     if frame not in ("circle", "square"):
         raise BadInput(f"--frame {frame!r}; expected circle or square")
-    if method not in METHODS:
-        raise BadInput(f"--method {method!r}; expected one of {', '.join(METHODS)}")
+    get_method(method)
     if style is not None and style not in STYLES:
         raise BadInput(f"--style {style!r}; expected one of {', '.join(STYLES)}")
     if not MIN_SIZE <= size <= MAX_SIZE:
@@ -170,7 +170,7 @@ def thread_length(pin_xy, chords):
 
 
 def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines="auto", start_pin=None,
-                 method="residual", disconnected=False, importance=None, gray=None, style=None,
+                 method=DEFAULT_METHOD, disconnected=False, importance=None, gray=None, style=None,
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
                  picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
@@ -234,29 +234,30 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         method's own figures.
     """
     t0 = time.perf_counter()
+    how = get_method(method)
     if size is None:  # ThreadTone works on a 1001-px picture (imgRadius 500), the paper on 401 px
-        size = GREEDY_SIZE if method == "greedy" else DEFAULTS["size"]
+        size = how.size or DEFAULTS["size"]
     if gray is None:  # ThreadTone grays by luminance (cv2.COLOR_BGR2GRAY), the paper by decolorization
-        gray = "luminance" if method == "greedy" else "decolor"
+        gray = how.gray
     auto_start = start_pin is None and method == "residual"  # residual: the pin of the best chord
     if start_pin is None:  # ThreadTone starts at its pin 0, which faces right: our pin pins / 4
-        start_pin = pins // 4 if method == "greedy" else 0
-    if method == "greedy" and crop is None and not fit and picture is None:
-        from .image import threadtone_crop
-
-        crop = threadtone_crop(path)
+        start_pin = pins // 4 if how.start_quarter else 0
+    if crop is None and not fit and picture is None:
+        crop = how.default_crop(path)
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin, method=method,
                 alpha=alpha, beta=beta, gamma=gamma, T=T, epsilon=epsilon, iterations=iterations, style=style)
     model = thread_model(diameter_mm, thread_mm)
-    if disconnected and method != "fitness":
-        raise BadInput("--disconnected works with --method fitness only")
-    if method != "fitness" and (style is not None or any(x is not None for x in (beta, gamma, T))):
-        raise BadInput(f"--style, --beta, --gamma and -T are knobs of --method fitness; {method} has none of them")
+    if disconnected and "disconnected" not in how.knobs:
+        raise BadInput(f"--disconnected works with --method {' or '.join(methods_taking('disconnected'))} only")
+    if "style" not in how.knobs and (style is not None or any(x is not None for x in (beta, gamma, T))):
+        raise BadInput(f"--style, --beta, --gamma and -T are knobs of --method {' or '.join(methods_taking('style'))}; "
+                       f"{method} has none of them")
     if fit and crop is not None:
         raise BadInput("--fit and --crop both choose the part of the picture to paint; give one of them")
-    if method != "residual" and (refine is not None or polish is not None):
+    if "polish" not in how.knobs and (refine is not None or polish is not None):
         given = " and ".join(f"--{n}" for n, v in (("refine", refine), ("polish", polish)) if v is not None)
-        raise BadInput(f"{given} {'are knobs' if ' and ' in given else 'is a knob'} of --method residual only "
+        raise BadInput(f"{given} {'are knobs' if ' and ' in given else 'is a knob'} of --method "
+                       f"{' or '.join(methods_taking('polish'))} only "
                        f"(not of {method}); leave {'them' if ' and ' in given else 'it'} out")
     if polish is None:
         polish = DEFAULTS["polish"] if lines == "auto" else 0
@@ -271,8 +272,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         crop = fit_crop(path, frame)
     report("reading the picture")
     # greedy reads the picture as ThreadTone does: cv2.resize, bilinear
-    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng,
-                                  resample="bilinear" if method == "greedy" else "lanczos")
+    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng, resample=how.resample)
     weights = None
     if importance is not None:
         weights = read_mask(importance, size=size, crop=pic.crop,
@@ -281,7 +281,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
 
     mask = frame_mask(size, frame)
     check_not_too_dark(pic.gray, mask)
-    k = (auto_lines(pic.gray, mask) if method != "residual" else None) if lines == "auto" else int(lines)
+    k = (None if how.stops_itself else auto_lines(pic.gray, mask)) if lines == "auto" else int(lines)
     space = chord_space(pins, frame)
     report("chords")
     stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m)}
@@ -301,15 +301,15 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         params["start_pin"] = int(seq[0])
         params.update(refine=refine, polish=polish, thread_px=round(model.width_px(size), 4))
         stats.update(extra)
-    elif method == "greedy":
-        from .greedy import greedy_sequence
-
-        gk = {"weight": DEFAULTS["greedy_weight"], "width": DEFAULTS["greedy_width"],
-              "min_loop": DEFAULTS["greedy_min_loop"], "reference_radius": greedy_reference_radius}
-        scale = (size - 1) / 2 / greedy_reference_radius if greedy_reference_radius else 1.0
-        params.update(gk, weight_at_size=round(gk["weight"] * scale, 4))
-        report("greedy")
-        seq = greedy_sequence(space, size, pic.gray, mask, k, start_pin=start_pin, **gk)
+    elif how.run:  # a method behind the registry's contract (stringbot.planner.methods)
+        knobs = dict(DEFAULTS, size=size, alpha=alpha, epsilon=epsilon, iterations=iterations,
+                     greedy_reference_radius=greedy_reference_radius, rng=rng)
+        job = Job(space, pic, mask, weights, lines if how.stops_itself and lines == "auto" else k, start_pin,
+                  model, knobs=knobs)
+        seq, used, figures = how.runner()(job)
+        seq = [int(p) for p in seq]
+        params.update(used)
+        stats.update(figures)
     else:
         params.update(alpha=alpha, epsilon=epsilon, iterations=iterations, style_requested=style or "auto")
         candidates = style_candidates(style, beta=beta, gamma=gamma, T=T)

@@ -37,7 +37,7 @@ from .chords import pin_pixels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["greedy_sequence", "line_samples", "band_pixels", "cv_half_width"]
+__all__ = ["greedy_sequence", "plan_greedy", "line_samples", "band_pixels", "cv_half_width"]
 
 
 def line_samples(r0, c0, r1, c1, size, *, nearest=False, spacing=1.0):
@@ -228,3 +228,18 @@ def greedy_sequence(space, size, gray, mask, lines, *, start_pin=0, weight=15.0,
         seq.append(nxt)
         cur = nxt
     return seq
+
+
+def plan_greedy(job):
+    """``--method greedy`` through the methods' contract (:mod:`stringbot.planner.methods`):
+    ThreadTone's weight of 15 on its 500-px radius, scaled to the working size."""
+    from .progress import report
+
+    size = job.picture.gray.shape[0]
+    radius = job.knobs["greedy_reference_radius"]
+    gk = {"weight": job.knobs["greedy_weight"], "width": job.knobs["greedy_width"],
+          "min_loop": job.knobs["greedy_min_loop"], "reference_radius": radius}
+    scale = (size - 1) / 2 / radius if radius else 1.0
+    report("greedy")
+    seq = greedy_sequence(job.space, size, job.picture.gray, job.mask, job.lines, start_pin=job.start_pin, **gk)
+    return seq, dict(gk, weight_at_size=round(gk["weight"] * scale, 4)), {}

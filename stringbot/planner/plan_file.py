@@ -1,4 +1,4 @@
-"""The plan file: the contract between the planner and everything else (DESIGN.md).
+"""The plan file: the contract between the planner and everything else (docs/design.md).
 
 A plan is JSON::
 
@@ -38,12 +38,13 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .._files import write_atomic
 from ..errors import BadInput
-from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
+from .thread import ThreadModel
 
 __all__ = ["Plan", "Layer", "read_plan", "write_plan", "FORMAT", "VERSION", "VERSIONS", "MONO_COLOR",
            "MONO_BACKGROUND", "require_one_layer"]
@@ -54,6 +55,10 @@ VERSIONS = (1, 2)    # what is read
 FRAMES = ("circle", "square")
 MONO_COLOR, MONO_BACKGROUND = "#000000", "#ffffff"
 _HEX = re.compile(r"^#[0-9a-f]{6}$")
+#: The frame and thread a plan that does not record them was planned for: what ``plan`` used
+#: before plans carried ``diameter_mm`` and ``thread_mm``.  Apart from the planner's defaults
+#: (thread.DEFAULT_*) on purpose: changing those must not change how an old plan is read.
+UNRECORDED_DIAMETER_MM, UNRECORDED_THREAD_MM = 500.0, 0.25
 
 
 @dataclass(frozen=True)
@@ -68,9 +73,9 @@ class Layer:
     """
 
     color: str
-    sequence: list
+    sequence: list[int]
 
-    def chords(self):
+    def chords(self) -> list[tuple[int, int]]:
         """The layer's chords as ``(i, j)`` pairs, in winding order."""
         return list(zip(self.sequence[:-1], self.sequence[1:]))
 
@@ -124,29 +129,29 @@ class Plan:
     pins: int
     frame: str
     pin_xy: np.ndarray
-    crop: dict
-    sequence: list
+    crop: dict[str, Any]
+    sequence: list[int]
     method: str
-    parameters: dict = field(default_factory=dict)
-    source: dict = field(default_factory=dict)
-    stats: dict = field(default_factory=dict)
+    parameters: dict[str, Any] = field(default_factory=dict)
+    source: dict[str, Any] = field(default_factory=dict)
+    stats: dict[str, Any] = field(default_factory=dict)
     connected: bool = True
-    chords: list = field(default_factory=list)
-    extra: dict = field(default_factory=dict)
-    diameter_mm: float = None
-    thread_mm: float = None
-    colors: list = field(default_factory=lambda: [MONO_COLOR])
-    layer_starts: list = field(default_factory=lambda: [0])
+    chords: list[tuple[int, int]] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
+    diameter_mm: float | None = None
+    thread_mm: float | None = None
+    colors: list[str] = field(default_factory=lambda: [MONO_COLOR])
+    layer_starts: list[int] = field(default_factory=lambda: [0])
     background: str = MONO_BACKGROUND
     #: the plan's coverage as woven on a fine canvas, when the planner drew it (not saved)
     woven_cover: object = field(default=None, repr=False, compare=False)
     #: the drawing as woven, when the polish's helper made it (not saved)
     woven_drawings: object = field(default=None, repr=False, compare=False)
 
-    def thread_model(self):
+    def thread_model(self) -> ThreadModel:
         """The plan's :class:`~stringbot.planner.thread.ThreadModel` (500 mm / 0.25 mm where not recorded)."""
-        return ThreadModel(diameter_mm=float(self.diameter_mm or DEFAULT_DIAMETER_MM),
-                           thread_mm=float(self.thread_mm or DEFAULT_THREAD_MM))
+        return ThreadModel(diameter_mm=float(self.diameter_mm or UNRECORDED_DIAMETER_MM),
+                           thread_mm=float(self.thread_mm or UNRECORDED_THREAD_MM))
 
     @classmethod
     def from_layers(cls, layers, *, background=MONO_BACKGROUND, **kw):
@@ -160,36 +165,36 @@ class Plan:
                    background=background, **kw)
 
     @property
-    def layers(self):
+    def layers(self) -> list[Layer]:
         """The layers in winding order (one for a mono plan)."""
         ends = list(self.layer_starts[1:]) + [len(self.sequence)]
         return [Layer(c, list(self.sequence[a:b])) for c, a, b in zip(self.colors, self.layer_starts, ends)]
 
     @property
-    def is_mono(self):
+    def is_mono(self) -> bool:
         """One layer of black thread on a white board: what version 1 describes."""
         return len(self.colors) == 1 and self.colors[0] == MONO_COLOR and self.background == MONO_BACKGROUND
 
     @property
-    def version(self):
+    def version(self) -> int:
         return 1 if self.is_mono else 2
 
-    def layer_of(self, step):
+    def layer_of(self, step: int) -> int:
         """The layer (0..) that step ``step`` (an index into ``sequence``) belongs to."""
         k = 0
         while k + 1 < len(self.layer_starts) and self.layer_starts[k + 1] <= step:
             k += 1
         return k
 
-    def chord_list(self):
+    def chord_list(self) -> list[tuple[int, int]]:
         """All chords as a list of ``(i, j)`` pairs, connected or not (never from one layer to the next)."""
         if self.connected:
             if len(self.layer_starts) == 1:
                 return list(zip(self.sequence[:-1], self.sequence[1:]))
             return [c for lay in self.layers for c in lay.chords()]
-        return [tuple(c) for c in self.chords]
+        return [(c[0], c[1]) for c in self.chords]
 
-    def to_json(self):
+    def to_json(self) -> str:
         doc = dict(self.extra)
         doc.update({
             "format": FORMAT,
@@ -217,7 +222,7 @@ class Plan:
             doc["background"] = self.background
         return json.dumps(doc, indent=1, sort_keys=False) + "\n"
 
-    def sha256(self):
+    def sha256(self) -> str:
         """Hash of what the machine would do: pins, frame and the chords, in order (and the threads)."""
         h = hashlib.sha256()
         what = [self.pins, self.frame, self.connected, [int(p) for p in self.sequence],
@@ -357,7 +362,7 @@ def plan_from_json(doc, *, where="plan"):
         if not (_is_num(v) and v > 0):
             raise BadInput(f"{where}: field {key!r} is {v!r}; expected a number of millimetres > 0")
         size[key] = float(v)
-    if (size["thread_mm"] or DEFAULT_THREAD_MM) >= (size["diameter_mm"] or DEFAULT_DIAMETER_MM):
+    if (size["thread_mm"] or UNRECORDED_THREAD_MM) >= (size["diameter_mm"] or UNRECORDED_DIAMETER_MM):
         raise BadInput(f"{where}: field 'thread_mm' is not less than 'diameter_mm'; "
                        "expected a thread thinner than the frame")
     method = _need(doc, "method", str, where, "a string")

@@ -60,6 +60,9 @@ head_mm)`` (declared, then read back); a servo link offers
 count from the journal) and returns the position read back.
 ``close()``; attributes ``info`` (FirmwareInfo), ``lines_sent`` (int).
 
+The interface as a type: :class:`stringbot.links.contract.StepLink` (a ``typing.Protocol``; mypy
+checks it, tests/test_types.py that every machine's link has each member).
+
 Errors: ``MachineFailure`` naming the step and pin (steps numbered from 1),
 never a bare port exception.
 

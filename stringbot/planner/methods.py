@@ -1,0 +1,128 @@
+"""The planner's methods: the one place that names them.
+
+``stringbot plan --method`` (its choices and help), the knob checks of
+:func:`~stringbot.planner.build.plan_picture`, docs/planner.md (a test checks
+that every method has its section there) and the benchmarks read
+:data:`METHODS`.  Light on purpose (no numpy): the command line imports it at
+start.
+
+A method added here with ``run = "module:function"`` is run through one
+contract: ``function(job)`` with a :class:`Job` (the chord space, the picture
+read at the method's working size, the frame mask, the importance weights,
+the line count, the start pin, the thread model and every knob as given)
+returns ``(sequence, params, stats)``: the pins in winding order (a list of
+int, no pin twice in a row), the knobs it used (recorded in the plan's
+``parameters``) and its figures (the plan's ``stats``).  ``residual`` and
+``fitness`` are run by :mod:`~stringbot.planner.build` itself (they return
+more than a sequence: the polish's canvas, a chord set).
+"""
+
+from dataclasses import dataclass, field
+
+__all__ = ["Method", "Job", "METHODS", "DEFAULT_METHOD", "get_method", "methods_taking", "method_help"]
+
+
+@dataclass(frozen=True)
+class Method:
+    """One planning method.
+
+    Parameters
+    ----------
+    name : str
+        What ``--method`` takes and the plan's ``method`` records.
+    summary : str
+        One line for ``plan --help``.
+    knobs : tuple of str
+        The method-only options it takes (``--style``, ``--disconnected``, ...); giving one to
+        a method that does not take it is refused, naming the methods that do.
+    size : int or None
+        Its working size in pixels when ``--size`` is not given (None: the planner's 401).
+    gray : str
+        How it grays a colour picture when ``--gray`` is not given.
+    resample : str
+        How it scales the picture (``lanczos``, ``bilinear``).
+    start_quarter : bool
+        Its first pin is ``pins // 4`` when ``--start-pin`` is not given (else 0; ``residual``
+        picks an end of its best chord).
+    crop : str
+        ``"module:function"`` giving its crop of a picture path when none is given (``""``:
+        the largest centred circle).
+    stops_itself : bool
+        With ``--lines auto`` it decides when to stop; else it draws ``500 + 10 (255 - mean
+        gray)`` lines (the paper's section 3.3).
+    run : str
+        ``"module:function"`` of the method's run (see the module notes); ``""`` for the two
+        that :mod:`~stringbot.planner.build` runs itself.
+    """
+
+    name: str
+    summary: str
+    knobs: tuple = ()
+    size: int | None = None
+    gray: str = "decolor"
+    resample: str = "lanczos"
+    start_quarter: bool = False
+    crop: str = ""
+    stops_itself: bool = False
+    run: str = ""
+
+    def runner(self):
+        """The run function (imported now: it may need numpy)."""
+        return _resolve(self.run)
+
+    def default_crop(self, path):
+        """Its crop of the picture at ``path`` when none is given, or None."""
+        return _resolve(self.crop)(path) if self.crop else None
+
+
+@dataclass
+class Job:
+    """What a method's run gets: see the module notes.  ``lines`` is an int (the line count;
+    ``"auto"`` only for a method that :attr:`~Method.stops_itself`)."""
+
+    space: object
+    picture: object
+    mask: object
+    weights: object
+    lines: object
+    start_pin: int
+    model: object
+    knobs: dict = field(default_factory=dict)
+
+
+def _resolve(dotted):
+    import importlib
+
+    module, _, name = dotted.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+#: Every method, by name; the first is the default.
+METHODS = {m.name: m for m in (
+    Method("residual", "chords chosen by what the picture as woven still lacks, then refined",
+           knobs=("refine", "polish"), stops_itself=True),
+    Method("fitness", "the paper's method", knobs=("disconnected", "style", "beta", "gamma", "T")),
+    Method("greedy", "ThreadTone as published", size=1001, gray="luminance", resample="bilinear",
+           start_quarter=True, crop="stringbot.planner.image:threadtone_crop",
+           run="stringbot.planner.greedy:plan_greedy"),
+)}
+DEFAULT_METHOD = next(iter(METHODS))
+
+
+def get_method(name):
+    """The :class:`Method` called ``name``; BadInput naming the methods there are."""
+    if name not in METHODS:
+        from ..errors import BadInput
+
+        raise BadInput(f"--method {name!r}; expected one of {', '.join(METHODS)}")
+    return METHODS[name]
+
+
+def methods_taking(knob):
+    """The names of the methods that take ``knob``, e.g. ``["fitness"]`` for ``"style"``."""
+    return [m.name for m in METHODS.values() if knob in m.knobs]
+
+
+def method_help():
+    """The ``--method`` help: each method's name and summary."""
+    return "; ".join(f"{m.name}: {m.summary}" for m in METHODS.values()) + "."
