@@ -65,7 +65,8 @@ def sheet_tile(plan, side):
 
     from stringbot.planner.scoring import woven_drawing
 
-    return resize(woven_drawing(plan.chord_list(), plan.pin_xy), (side, side), anti_aliasing=True)
+    return resize(woven_drawing(plan.chord_list(), plan.pin_xy, thread_fraction=plan.thread_model().fraction),
+                  (side, side), anti_aliasing=True)
 
 
 def source_tile(image, crop, weights, side):

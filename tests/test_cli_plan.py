@@ -334,9 +334,9 @@ def test_plan_records_the_thread_and_renders_as_woven_by_default(tmp_path, pictu
     # at 301 px: gray, anti-aliased, and lighter overall than 1-pixel lines
     assert set(np.unique(binary)) <= {0.0, 255.0}
     assert len(np.unique(woven)) > 20 and woven.mean() > binary.mean()
-    # the preview is the woven drawing at 1001 px
+    # the preview is the woven drawing at 1001 px (2 px wide threads there, 4 x 4 samples a pixel at least)
     preview = np.asarray(Image.open(tmp_path / "p.png"))
-    assert preview.shape == (1001, 1001) and len(np.unique(preview)) > 20
+    assert preview.shape == (1001, 1001) and len(np.unique(preview)) > 10
 
 
 def test_old_plans_without_thread_fields_still_read(tmp_path, picture):

@@ -312,10 +312,10 @@ def score_cmd(plan, image, as_json, colour):
 
     The paper's SSIM (section 4.1: 1-pixel chords at 1001 px, both at 201 px,
     plain and blurred) with Wang et al.'s 11 x 11 Gaussian window and with
-    scikit-image's default 7 x 7 window, and the as-woven error (the plan
-    woven at 2048 px with a thread 1/2048 of the frame wide, box-filtered to
-    512 px, against the picture at 512 px, both blurred by sigma 2 px: RMS over
-    the frame, gray levels 0..1, lower is better).
+    scikit-image's default 7 x 7 window, and the as-woven error (the plan's
+    reference rendering at 512 px: its thread at its real width with a sharp
+    edge, converged; against the picture at 512 px, both blurred by sigma 2 px:
+    RMS over the frame, gray levels 0..1, lower is better).
 
     A colour plan (and any plan with --colour) is scored in colour: the mean
     CIEDE2000 between the picture and the plan as woven (both at 201 px,

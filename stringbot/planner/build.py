@@ -293,9 +293,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
               "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
               "importance": str(importance) if importance is not None else None}
-    chords = woven_cover = woven_drawings = None
+    chords = woven_drawings = None
     if method == "residual":
-        seq, extra, woven_cover, woven_drawings = _residual_run(
+        seq, extra, woven_drawings = _residual_run(
             space, pic, mask, weights, lines if lines == "auto" else k, model,
             start_pin=None if auto_start else start_pin, refine=refine, polish=polish, preview=preview)
         params["start_pin"] = int(seq[0])
@@ -344,7 +344,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                 pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
                 connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])],
-                woven_cover=woven_cover, woven_drawings=woven_drawings)
+                woven_drawings=woven_drawings)
 
 
 def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None):
@@ -397,7 +397,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
                      residual.MAX_AUTO)
         del canvas, pin_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
         if not polish:
-            return seq, out, None, None
+            return seq, out, None
         t = time.perf_counter()
         report("polishing")
         done = None if helper is None else helper.finish(seq, polish)
@@ -407,9 +407,9 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
             woven = _woven_canvas(target, w, space, model)
             woven.build(list(zip(seq[:-1], seq[1:])))
             done = polish_plan(woven, seq, space, budget=polish)
-        seq, ps, cover = done
+        seq, ps = done
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
-        return seq, out, cover, drawings
+        return seq, out, drawings
     finally:
         if helper is not None:
             helper.close()
