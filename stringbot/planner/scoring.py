@@ -35,7 +35,8 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 __all__ = ["score", "score_chords", "ssim_pair", "woven_error", "woven_drawing", "SCORE_DRAW", "SCORE_SIZE",
-           "BLUR_SIGMA", "WOVEN_THREAD", "WOVEN_SIZE", "blurred_rms", "WOVEN_SIGMA", "SSIM_KEYS"]
+           "BLUR_SIGMA", "WOVEN_THREAD", "WOVEN_SIZE", "blurred_rms", "WOVEN_SIGMA", "SSIM_KEYS", "LUMINANCE",
+           "score_picture", "plan_gray"]
 
 SCORE_DRAW = 1001
 SCORE_SIZE = 201
@@ -44,6 +45,9 @@ WOVEN_SIZE = 512
 #: the thread's width as a fraction of the frame where a plan does not say (0.25 mm on 500 mm)
 WOVEN_THREAD = 0.25 / 500.0
 WOVEN_SIGMA = 2.0  # pixels at 512 x 512
+#: The neutral yardstick's gray: luminance weighed as ``skimage.color.rgb2gray`` does (Rec. 709 weights on
+#: the sRGB values), the target the peers plan against
+LUMINANCE = (0.2125, 0.7154, 0.0721)
 #: The four SSIM figures of a score: two windows, plain and blurred.
 SSIM_KEYS = ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred")
 
@@ -153,6 +157,51 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA, woven_gray=None):
     """
     return score_chords(plan.chord_list(), plan.pin_xy, gray, frame=frame or plan.frame, blur_sigma=blur_sigma,
                         woven_gray=woven_gray, thread_fraction=plan.thread_model().fraction)
+
+
+def plan_gray(plan):
+    """``(gray, weights)`` the plan was made against, as :func:`~stringbot.planner.image.read_picture`
+    takes them (``"decolor"`` with no weights where the plan does not say)."""
+    gray = plan.parameters.get("gray_requested", "decolor")
+    weights = plan.parameters.get("gray_weights")
+    if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):
+        weights = None
+    return (gray if gray in ("decolor", "luminance") else "decolor"), weights
+
+
+def score_picture(plan, image, *, target="luminance"):
+    """Score a plan against a picture file, cropped as the plan says.
+
+    Parameters
+    ----------
+    plan : Plan
+    image : str or Path
+    target : {"luminance", "own"}
+        ``luminance``: the neutral yardstick, the picture's luminance weighed
+        as ``skimage.color.rgb2gray`` does (:data:`LUMINANCE`), what the peers
+        plan against; ``own``: the gray the plan was made against
+        (:func:`plan_gray`: its decolorization's weights, as recorded).
+
+    Returns
+    -------
+    dict
+        :func:`score_chords`'s figures with ``woven_error``, and ``weights``
+        (the colour-to-gray weights used, None for a gray picture) and
+        ``source`` (the picture's ``source`` record: path, sha256, size).
+    """
+    from .image import read_picture
+
+    if target == "luminance":
+        gray, weights = "luminance", LUMINANCE
+    elif target == "own":
+        gray, weights = plan_gray(plan)
+    else:
+        raise ValueError(f"target {target!r}; expected 'luminance' or 'own'")
+    pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, weights=weights, gray=gray)
+    woven = read_picture(image, size=WOVEN_SIZE, crop=plan.crop, weights=pic.weights, gray=gray)
+    out = score(plan, pic.gray, woven_gray=woven.gray)
+    out.update(weights=pic.weights, source=pic.source)
+    return out
 
 
 def score_chords(chords, pin_xy, gray, *, frame, blur_sigma=BLUR_SIGMA, woven_gray=None, thread_fraction=WOVEN_THREAD):
