@@ -16,7 +16,7 @@ from stringbot.planner.greedy import _PinLines
 from stringbot.planner.polish import polish_plan
 from stringbot.planner.resample import resize_square
 from stringbot.planner.scoring import woven_error
-from stringbot.planner.thread import coverage
+from stringbot.planner.reference import reference_coverage
 from stringbot.planner.woven import WovenCanvas
 
 from planner_helpers import picture
@@ -49,11 +49,10 @@ def polished_canvas(t, mask, space, chords):
 
 
 def brute_error(canvas, chords, t, mask):
-    """E from scratch: the chords' coverage on the fine canvas capped at 1, averaged to the grid, the
-    error blurred by the canvas's own kernel."""
-    F, f, m = canvas.F, canvas.f, canvas.size
-    cov = coverage(chords, canvas.pin_xy, size=F, width_px=WIDTH * f) if chords else np.zeros((F, F))
-    D = np.minimum(cov, 1.0).reshape(m, f, m, f).mean(axis=(1, 3))
+    """E from scratch: the chords' union as the reference rendering draws it on the canvas's fine grid,
+    averaged to the grid, the error blurred by the canvas's own kernel."""
+    f, m = canvas.f, canvas.size
+    D = reference_coverage(chords, canvas.pin_xy, size=m, thread_fraction=WIDTH / m, factor=f).astype(float)
     x = np.sqrt(mask.astype(float)) * (t - D)
     k1 = canvas._kw1.reshape(int(np.sqrt(len(canvas._kw1))), -1)
     pad = np.pad(x, canvas.rad)
@@ -78,11 +77,13 @@ def test_the_canvas_knows_its_error_exactly_after_every_change():
     assert d == pytest.approx(exact, rel=1e-5, abs=1e-6)
     assert applied == pytest.approx(exact, rel=1e-5, abs=1e-6)
     assert canvas.error() == pytest.approx(brute_error(canvas, after, t, mask), rel=1e-6)
-    # a chord drawn again darkens only what the first left uncovered (coverage capped per fine pixel)
+    # a chord drawn again lies on the first: it changes nothing, and lifting one copy changes nothing
     once = canvas.delta(chords_in=[(2, 25)])
     canvas.apply(chords_in=[(2, 25)])
-    twice = canvas.delta(chords_in=[(2, 25)])
-    assert abs(twice) < abs(once)
+    assert once != 0.0 and canvas.delta(chords_in=[(2, 25)]) == 0.0
+    canvas.apply(chords_in=[(25, 2)])
+    assert canvas.delta(chords_out=[(2, 25)]) == 0.0
+    assert canvas.delta(chords_out=[(2, 25)] * 2) == pytest.approx(-once, rel=1e-9)
 
 
 def test_the_estimate_is_the_exact_change_where_the_chords_do_not_overlap():
@@ -228,6 +229,6 @@ def test_each_fine_pixel_falls_in_the_grid_pixel_under_it(m, width):
     canvas = WovenCanvas(np.zeros((m, m)), np.ones((m, m)), np.array([[0.5, 0.0], [0.5, 1.0]]), width)
     F, f = canvas.F, canvas.f
     rows, cols = np.divmod(np.random.default_rng(m).integers(0, F * F, 20000), F)
-    cells = canvas._cells((rows * F + cols).astype(np.int32))
+    cells = canvas._stamp.cells((rows * F + cols).astype(np.int32))
     assert cells.dtype == np.int64
     assert np.array_equal(cells, (rows // f) * m + cols // f)

@@ -360,7 +360,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
         raise BadInput("residual found nothing to draw: the picture is blank inside the frame; "
                        "expected a picture with some dark parts")
     w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
-    canvas = Canvas(target, w, space.pin_xy, model.width_px(size))
+    canvas = Canvas(target, w, space.pin_xy, model.width_px(size), eye=lines == "auto")
     # points about every 1/400 of the frame along each chord (at 801 px every other pixel: the mean
     # residual along a chord needs no more, and this halves the work of large sizes); every 1/200 for
     # a plan to be polished (see CHOOSE_POINTS_POLISHED)

@@ -29,7 +29,8 @@ import math
 
 import numpy as np
 
-__all__ = ["reference_coverage", "reference_gray", "fine_factor", "SAMPLES_PER_WIDTH", "STRIP_SAMPLES"]
+__all__ = ["reference_coverage", "reference_gray", "thread_samples", "fine_factor", "SAMPLES_PER_WIDTH",
+           "STRIP_SAMPLES"]
 
 #: samples across one thread's width (at least): the thread 4 fine pixels wide
 SAMPLES_PER_WIDTH = 4.0
@@ -137,6 +138,36 @@ def _mark(cov, start, length, step):
     for i in range(short, longest):  # the longer runs (of steeper threads, or a sample more)
         more = length > i
         cov[start[more] + i * step] = 1
+
+
+def thread_samples(xy0, xy1, F, half):
+    """The samples one thread covers on a whole ``F x F`` fine canvas, by the test the reference
+    rendering makes: flat indices ``row * F + col`` (int32, each once).
+
+    Parameters
+    ----------
+    xy0, xy1 : array_like of float, shape (2,)
+        The thread's ends, normalised (``x`` right, ``y`` down, in [0, 1]).
+    F : int
+        Side of the canvas in samples.
+    half : float
+        Half the thread's width in samples.
+    """
+    (xmaj, ymaj) = _lines([(0, 1)], np.array([xy0, xy1], dtype=np.float64), F)
+    if len(xmaj[0]):
+        a, start, n = _runs(xmaj, half, (0, F), (0, F))
+        stride, step = 1, F  # a run of rows in column a
+    else:
+        a, start, n = _runs(ymaj, half, (0, F), (0, F))
+        stride, step = F, 1  # a run of columns in row a
+    if not len(a):
+        return np.zeros(0, np.int32)
+    top = int(n.max(initial=0))
+    off = np.arange(top, dtype=np.int64)
+    minor = start[:, None] + off[None, :]
+    ok = (off[None, :] < n[:, None]) & (minor >= 0) & (minor < F)
+    flat = a[:, None] * stride + minor * step
+    return flat[ok].astype(np.int32)
 
 
 def reference_coverage(chords, pin_xy, *, size, thread_fraction, samples=SAMPLES_PER_WIDTH, factor=None, rows=None):

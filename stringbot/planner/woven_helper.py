@@ -142,12 +142,12 @@ def buffers(canvas, block):
     footprints."""
     import mmap
 
-    chord = 2 * (canvas.F + 2) * len(canvas._stamp.offsets)  # fine pixels of a chord, at most (with room)
-    size = 8 * canvas.P * canvas.P + 4 * chord * (8 + 4 + 4 + 4)
+    chord = canvas.max_samples + 64  # fine pixels of a chord, at most (with room)
+    size = 8 * canvas.P * canvas.P + 4 * chord * (8 + 4 + 2 + 4) + 64
     return [[mmap.mmap(-1, size) for _ in range(block)] for _side in range(2)]
 
 
-_LAYOUT = (np.float64, np.float64, np.int32, np.float32, np.int32)  # G, d, flat, sf, cu
+_LAYOUT = (np.float64, np.float64, np.int32, np.uint16, np.int32)  # G, d, flat, sf (counts), cu
 
 
 def _pack(buf, change):
@@ -157,7 +157,7 @@ def _pack(buf, change):
     for arr, dtype in zip((G, d, flat, sf, cu), _LAYOUT):
         view = np.frombuffer(buf, dtype=dtype, count=len(arr), offset=at)
         view[:] = arr
-        at += view.nbytes
+        at = (at + view.nbytes + 7) & ~7  # each array on 8 bytes
     return len(G), len(cu), len(flat), float(E)
 
 
@@ -167,7 +167,7 @@ def _unpack(buf, sizes):
     for n, dtype in zip((nG, nc, nf, nf, nc), _LAYOUT):
         view = np.frombuffer(buf, dtype=dtype, count=n, offset=at)
         out.append(view)
-        at += view.nbytes
+        at = (at + view.nbytes + 7) & ~7  # each array on 8 bytes
     G, d, flat, sf, cu = out
     return (flat, sf, cu, d), G, E
 
