@@ -96,3 +96,16 @@ def test_the_gray_is_the_board_showing_through():
     np.testing.assert_allclose(reference_gray(chords, xy, size=64, thread_fraction=0.01, board=200, thread=20),
                                200 * (1 - cov) + 20 * cov, rtol=1e-6)
     assert reference_coverage([], xy, size=64, thread_fraction=0.01).max() == 0.0
+
+
+def test_the_preview_is_the_reference_with_fewer_samples_and_the_same_mean():
+    from stringbot.planner import Plan
+    from stringbot.planner.render import PREVIEW_SAMPLES, draw_woven, preview_drawing
+
+    chords, xy = _random_plan(120, 400, seed=3)
+    seq = [chords[0][0]] + [b for _, b in chords]
+    plan = Plan(pins=120, frame="circle", pin_xy=xy, crop={"cx": 1, "cy": 1, "r": 1}, sequence=seq, method="x")
+    full = draw_woven(plan, size=301).astype(float)
+    preview = preview_drawing(plan, 301).astype(float)
+    assert PREVIEW_SAMPLES < reference.SAMPLES_PER_WIDTH and not np.array_equal(full, preview)
+    assert abs(full.mean() - preview.mean()) / 255 < 0.002 and full.mean() < 250

@@ -87,24 +87,24 @@ def test_the_number_of_processes_follows_the_setting(monkeypatch):
 
 
 def test_the_twin_draws_the_preview_one_process_would(monkeypatch):
-    from stringbot.planner.render import draw_woven, png_bytes, preview_png
+    from stringbot.planner.render import png_bytes, preview_drawing, preview_png
 
     one = _plan(monkeypatch, 1, preview=1001)
     two = _plan(monkeypatch, 2, preview=1001)
     assert one.woven_drawings is None and two.woven_drawings is not None
-    np.testing.assert_array_equal(draw_woven(two, size=1001), draw_woven(one, size=1001))
+    np.testing.assert_array_equal(preview_drawing(two, 1001), preview_drawing(one, 1001))
     # the twin encoded the PNG too: the bytes the planner's own process would write
-    assert two.woven_drawings.png(1001, 255, 0) == png_bytes(draw_woven(one, size=1001))
+    assert two.woven_drawings.png(1001, 255, 0) == png_bytes(preview_drawing(one, 1001))
     assert preview_png(two, 1001) == preview_png(one, 1001)
     assert two.woven_drawings(501, 255, 0) is None  # another size: drawn by the caller
     assert two.woven_drawings.png(501, 255, 0) is None
-    assert preview_png(two, 501) == png_bytes(draw_woven(two, size=501))  # drawn here
+    assert preview_png(two, 501) == png_bytes(preview_drawing(two, 501))  # drawn here
     two.woven_drawings.close()
     assert _no_children_left()
 
 
 def test_a_twin_that_does_not_draw_leaves_the_preview_here(monkeypatch, caplog):
-    from stringbot.planner.render import draw_woven, png_bytes, preview_png
+    from stringbot.planner.render import png_bytes, preview_drawing, preview_png
 
     one = _plan(monkeypatch, 1, preview=1001)
 
@@ -114,10 +114,10 @@ def test_a_twin_that_does_not_draw_leaves_the_preview_here(monkeypatch, caplog):
     monkeypatch.setattr(woven_helper.TwinDrawing, "make", no_drawing)
     two = _plan(monkeypatch, 2, preview=1001)
     with caplog.at_level(logging.WARNING, logger="stringbot.planner.woven_helper"):
-        img = draw_woven(two, size=1001)
+        img = preview_drawing(two, 1001)
     assert "did not draw the preview" in caplog.text
     # drawn here from the plan's threads: the drawing the twin would have made
-    np.testing.assert_array_equal(img, draw_woven(one, size=1001))
+    np.testing.assert_array_equal(img, preview_drawing(one, 1001))
     assert two.woven_drawings.png(1001, 255, 0) is None and preview_png(two, 1001) == png_bytes(img)
     assert two.sequence == one.sequence
     two.woven_drawings.close()

@@ -57,8 +57,9 @@ class _Lines(click.ParamType):
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
 @click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
-              help="Colour to gray: contrast-preserving decolorization or plain luminance "
-                   "[default: decolor; greedy: luminance, ThreadTone's].")
+              help="Colour to gray: contrast-preserving decolorization or plain luminance (0.2125 R + 0.7154 G + "
+                   "0.0721 B; greedy: ThreadTone's 0.299 R + 0.587 G + 0.114 B) [default: luminance; fitness: "
+                   "decolor, the paper's].")
 @click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
 @click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default=None,
               help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "

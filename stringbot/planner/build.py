@@ -185,7 +185,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     alpha, epsilon, iterations
         The knobs (see ``stringbot plan --help`` and docs/planner.md).  ``size``
         None: 1001 for greedy (ThreadTone's own), else 401; ``gray`` None:
-        luminance for greedy (ThreadTone's), else decolor.  ``start_pin`` None:
+        decolor for fitness (the paper's), else luminance (greedy: with
+        ThreadTone's weights, ``cv2.COLOR_BGR2GRAY``'s).  ``start_pin`` None:
         ``pins // 4`` for greedy (ThreadTone's pin 0 faces right), the pin of
         the best chord for residual (recorded in the plan), else 0;
         greedy's default crop is ThreadTone's square (whole-pixel offsets).
@@ -236,8 +237,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     t0 = time.perf_counter()
     if size is None:  # ThreadTone works on a 1001-px picture (imgRadius 500), the paper on 401 px
         size = GREEDY_SIZE if method == "greedy" else DEFAULTS["size"]
-    if gray is None:  # ThreadTone grays by luminance (cv2.COLOR_BGR2GRAY), the paper by decolorization
-        gray = "luminance" if method == "greedy" else "decolor"
+    if gray is None:  # the paper grays by decolorization; the piece as woven is seen by its luminance
+        gray = "decolor" if method == "fitness" else "luminance"
     auto_start = start_pin is None and method == "residual"  # residual: the pin of the best chord
     if start_pin is None:  # ThreadTone starts at its pin 0, which faces right: our pin pins / 4
         start_pin = pins // 4 if method == "greedy" else 0
@@ -271,7 +272,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         crop = fit_crop(path, frame)
     report("reading the picture")
     # greedy reads the picture as ThreadTone does: cv2.resize, bilinear
+    from .image import CV2_LUMINANCE
+
     pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng,
+                                  weights=CV2_LUMINANCE if method == "greedy" and gray == "luminance" else None,
                                   resample="bilinear" if method == "greedy" else "lanczos")
     weights = None
     if importance is not None:

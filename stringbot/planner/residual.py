@@ -14,6 +14,9 @@ of them, so no direction is favoured), of
 ``w (1 - D) ((t - D) - kappa (1 - D))``: how much darker the picture wants
 to be there, times how much darker one more thread would still make it (it
 falls on the uncovered part, ``1 - D``), less its own second-order cost.
+With ``lines="auto"`` half the score (:data:`EYE_SHARE`) is the same slope of
+the error as the eye sees it (below), on its coarse grid: the piece is judged
+from a step away, where a thread's own stripe does not count.
 The chord of highest score is drawn, and the error it leaves (or the
 darkness it overshoots) is what the next choices see.  A chord drawn again
 lies on the first and adds nothing (its score is 0).  The last ``min_loop``
@@ -41,7 +44,7 @@ from .union import COUNT, UnionStamp, fine_per_pixel, unique
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Canvas", "residual_sequence", "best_start", "fresh", "sum_sparse", "PATIENCE", "EYE_GRID"]
+__all__ = ["Canvas", "residual_sequence", "best_start", "fresh", "sum_sparse", "PATIENCE", "EYE_GRID", "EYE_SHARE"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -51,6 +54,9 @@ MAX_AUTO = 60_000
 CHOOSER_MAX_FINE = 4096
 #: side of the coarse grid the chooser measures the error as the eye sees it on (``lines="auto"``)
 EYE_GRID = 128
+#: with ``lines="auto"``, the share of a chord's score that is the slope of the error as the eye sees it
+#: (the rest: the pixel error's); docs/planner.md, "How the chooser scores a chord"
+EYE_SHARE = 0.5
 
 
 def sum_sparse(parts, acc, mark):
@@ -251,12 +257,18 @@ class Canvas:
         te = np.bincount(self._ecell, weights=self.w * self.t, minlength=me * me) / np.maximum(area * n, 1e-12)
         box = (m / me) ** 2 / 12.0 / m ** 2  # a cell's own blur (variance, in frames squared)
         sigma = float(np.sqrt(max(EYE_SIGMA ** 2 - box, 0.25 * EYE_SIGMA ** 2))) * me
-        self.eye = EyeError(te.reshape(me, me), area.reshape(me, me), sigma=sigma)
+        self.eye = eye = EyeError(te.reshape(me, me), area.reshape(me, me), sigma=sigma)
         self._emark = np.zeros(me * me, dtype=np.int64)
+        self._eu = np.zeros(eye.P * eye.P)  # s (1 - D) on the eye's padded grid
+        self._eu[eye.pidx] = eye.s
+        self.eye_slope = self._eu * eye.G  # how much one more thread's coverage lowers the eye's error (/ 2)
 
     def _eye_take(self, pix, dD):
         cu, inv = unique(self._ecell[pix], self._emark)
-        self.eye.take(cu, np.bincount(inv, weights=dD * self._eshare[pix], minlength=len(cu)))
+        eye = self.eye
+        eye.take(cu, np.bincount(inv, weights=dD * self._eshare[pix], minlength=len(cu)))
+        self._eu[eye.pidx[cu]] = eye.s[cu] * (1.0 - eye.D[cu])
+        np.multiply(self._eu, eye.G, out=self.eye_slope)
 
     def eye_error(self):
         """The error as the eye sees it (on :attr:`eye`'s grid), or None without it."""
@@ -313,6 +325,14 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     auto = lines == "auto"
     limit = MAX_AUTO if auto else int(lines)
     pins = pin_lines or _PinLines(space, canvas.size, nearest=True)
+    mix = EYE_SHARE if canvas.eye is not None else 0.0
+    if mix:
+        eye_lines = _PinLines(space, canvas.eye.size, nearest=True, spacing=1.0)
+        eye_rows = {}
+        eg = canvas.eye_slope
+        # the pixel slope is a darkness per unit of coverage; the eye's is per unit of coverage of a
+        # cell, blurred twice: the two are put on one scale by their spread over the blank frame
+        escale = float(np.std(canvas.slope())) / max(float(np.std(eg)), 1e-12)
     if start_pin is None:
         start_pin = best_start(canvas, space, pins)
     seq = [int(start_pin)]
@@ -325,7 +345,14 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
         others, pix, starts, counts = pins.get_with_counts(cur)
         if not len(others):
             break
-        score = fresh(np.add.reduceat(g.take(pix), starts) / counts, canvas.uses[cur, others])
+        raw = np.add.reduceat(g.take(pix), starts) / counts
+        if mix:
+            row = eye_rows.get(cur)
+            if row is None:
+                eo, ep, es, ec = eye_lines.get_with_counts(cur)
+                row = eye_rows[cur] = (canvas.eye.pidx[ep], es, ec)
+            raw = (1.0 - mix) * raw + mix * escale * (np.add.reduceat(eg.take(row[0]), row[1]) / row[2])
+        score = fresh(raw, canvas.uses[cur, others])
         for q in seq[-min_loop:]:
             k = int(np.searchsorted(others, q))
             if k < len(others) and others[k] == q:

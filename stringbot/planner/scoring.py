@@ -32,6 +32,10 @@ import logging
 
 import numpy as np
 
+#: The neutral yardstick's gray: luminance weighed as ``skimage.color.rgb2gray`` does (Rec. 709 weights on
+#: the sRGB values), the target the peers plan against, and the planner's plain luminance
+from .image import LUMINANCE
+
 log = logging.getLogger(__name__)
 
 __all__ = ["score", "score_chords", "ssim_pair", "woven_error", "woven_drawing", "SCORE_DRAW", "SCORE_SIZE",
@@ -45,9 +49,6 @@ WOVEN_SIZE = 512
 #: the thread's width as a fraction of the frame where a plan does not say (0.25 mm on 500 mm)
 WOVEN_THREAD = 0.25 / 500.0
 WOVEN_SIGMA = 2.0  # pixels at 512 x 512
-#: The neutral yardstick's gray: luminance weighed as ``skimage.color.rgb2gray`` does (Rec. 709 weights on
-#: the sRGB values), the target the peers plan against
-LUMINANCE = (0.2125, 0.7154, 0.0721)
 #: The four SSIM figures of a score: two windows, plain and blurred.
 SSIM_KEYS = ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred")
 

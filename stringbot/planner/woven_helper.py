@@ -200,7 +200,8 @@ class TwinDrawing:
 
     Made in the planner's process before the helper is forked (a shared
     buffer and a pipe the twin says "done" on); called as a plan's
-    ``woven_drawings(size, board, thread)``: the drawing (uint8, ``size`` px,
+    ``woven_drawings(size, board, thread)``: the preview
+    (:func:`~stringbot.planner.render.preview_drawing`: uint8, ``size`` px,
     black thread on white) once the twin has made it, or None (another size,
     or the twin failed: the caller draws it); :meth:`png` the same as PNG
     bytes, which the twin encodes too.
@@ -225,10 +226,10 @@ class TwinDrawing:
 
     def make(self, canvas, seq):  # pragma: no cover - runs in the twin
         """Draw the polished sequence ``seq`` (the twin's, the same as the helper's) and say so."""
-        from .render import png_bytes, woven_image
+        from .render import PREVIEW_SAMPLES, png_bytes, woven_image
 
         img = woven_image(list(zip(seq[:-1], seq[1:])), canvas.pin_xy, size=self.size,
-                          thread_fraction=self.model.fraction)
+                          thread_fraction=self.model.fraction, samples=PREVIEW_SAMPLES)
         self._buf[:] = img.tobytes()
         png = png_bytes(img)
         fits = len(png) <= len(self._png_buf)
