@@ -195,3 +195,32 @@ def test_residual_starts_at_an_end_of_its_best_chord_unless_told():
     assert p.sequence[1] == top(first)[1]
     told = plan_picture("x", pins=80, size=101, picture=pic, lines=30, start_pin=7)
     assert told.sequence[0] == told.parameters["start_pin"] == 7
+
+
+def test_the_error_as_the_eye_sees_it_is_kept_exactly_and_auto_stops_at_its_lowest():
+    from stringbot.planner.eye import EyeError
+
+    g = disc_picture()
+    space = chord_space(80)
+    canvas = Canvas(*_target(g), space.pin_xy, 0.2, eye=True)
+    seq = residual_sequence(canvas, space, "auto")
+    eye = canvas.eye
+    # kept chord by chord, it is the error of the drawing averaged to the eye's grid, from scratch
+    me = eye.size
+    cells = np.bincount(canvas._ecell, minlength=me * me)
+    d_eye = np.bincount(canvas._ecell, weights=canvas.D, minlength=me * me) / cells
+    kept = eye.error()
+    assert eye.reset(d_eye) == pytest.approx(kept, rel=1e-9)  # reset: computed from scratch
+    assert isinstance(eye, EyeError) and kept < eye.reset(np.zeros(me * me))
+    # the run was cut back to where that error was lowest: no shorter prefix is better
+    again = Canvas(*_target(g), space.pin_xy, 0.2, eye=True)
+    errors = [again.eye.error()]
+    for chord in zip(seq[:-1], seq[1:]):
+        again.apply(chords_in=[chord])
+        errors.append(again.eye.error())
+    assert errors[-1] == pytest.approx(min(errors), rel=1e-9) and errors[-1] < 0.8 * errors[0]
+
+
+def _target(g):
+    mask = frame_mask(g.shape[0], "circle")
+    return np.where(mask, 1 - g / 255.0, 0.0), mask.astype(float)

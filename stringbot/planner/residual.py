@@ -52,6 +52,8 @@ MAX_AUTO = 60_000
 #: the chooser's fine canvas: samples per working pixel so that the thread is about one sample wide, at most
 #: this many samples a side
 CHOOSER_MAX_FINE = 4096
+#: footprints the chooser keeps (about 20 kB each at 401 px): the chords drawn, and those tried by the refinement
+MAX_CACHED = 8000
 #: side of the coarse grid the chooser measures the error as the eye sees it on (``lines="auto"``)
 EYE_GRID = 128
 #: with ``lines="auto"``, the share of a chord's score that is the slope of the error as the eye sees it
@@ -147,7 +149,7 @@ class Canvas:
         key = (a, b) if a < b else (b, a)
         fp = self._fp.get(key)
         if fp is None:
-            if len(self._fp) >= 20_000:
+            if len(self._fp) >= MAX_CACHED:
                 self._fp.clear()
             flat = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])
             fp = self._fp[key] = (flat,) + self._cover(flat)
