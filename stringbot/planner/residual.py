@@ -246,7 +246,8 @@ class Canvas:
 
     def _eye_grid(self, target, weights):
         """The error as the eye sees it on a grid of :data:`EYE_GRID` px at most: each working pixel in one
-        of its cells, the cell the mean of its pixels, the blur less the cell's own (a box)."""
+        of its cells, the cell the mean of its pixels, blurred by the scorer's sigma (its figure is the
+        scorer's within 0.01 on the peers' plans: docs/planner.md)."""
         from .eye import EYE_SIGMA, EyeError
 
         m = self.size
@@ -257,9 +258,7 @@ class Canvas:
         self._eshare = 1.0 / n[self._ecell]  # a pixel's share of its cell
         area = np.bincount(self._ecell, weights=self.w, minlength=me * me) / n
         te = np.bincount(self._ecell, weights=self.w * self.t, minlength=me * me) / np.maximum(area * n, 1e-12)
-        box = (m / me) ** 2 / 12.0 / m ** 2  # a cell's own blur (variance, in frames squared)
-        sigma = float(np.sqrt(max(EYE_SIGMA ** 2 - box, 0.25 * EYE_SIGMA ** 2))) * me
-        self.eye = eye = EyeError(te.reshape(me, me), area.reshape(me, me), sigma=sigma)
+        self.eye = eye = EyeError(te.reshape(me, me), area.reshape(me, me), sigma=EYE_SIGMA * me)
         self._emark = np.zeros(me * me, dtype=np.int64)
         self._eu = np.zeros(eye.P * eye.P)  # s (1 - D) on the eye's padded grid
         self._eu[eye.pidx] = eye.s
