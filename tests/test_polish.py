@@ -182,6 +182,9 @@ def test_auto_lines_are_polished_and_a_line_count_is_not():
     assert auto.stats["polish"]["rerouted"] > 0
     assert auto.stats["polish"]["woven_rms"] < auto.stats["polish"]["woven_rms_before"]
     assert fixed.parameters["polish"] == 0 and fixed.parameters["refine"] == 300 and "polish" not in fixed.stats
+    # the stop's figure, the error as the eye sees it before the polish, is the polish's own of that plan
+    assert "eye_rms" not in fixed.stats
+    assert auto.stats["eye_rms"] == pytest.approx(auto.stats["polish"]["woven_rms_before"], abs=0.02)
     # without the polish the same choice is made; the polish reroutes some of it and the piece as the
     # scorer sees it gets better
     plain = plan_picture("x.png", picture=pic, pins=60, size=101, polish=0, refine=0)

@@ -136,7 +136,8 @@ def blurred_rms(a, b, *, frame, sigma=WOVEN_SIGMA):
 
     from .fitness import frame_mask
 
-    d = gaussian_filter(np.asarray(a, dtype=np.float64), sigma) - gaussian_filter(np.asarray(b, dtype=np.float64), sigma)
+    a, b = (gaussian_filter(np.asarray(x, dtype=np.float64), sigma) for x in (a, b))
+    d = a - b
     return float(np.sqrt(np.mean(d[frame_mask(d.shape[0], frame)] ** 2)))
 
 
