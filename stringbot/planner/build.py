@@ -389,15 +389,15 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
         # more lines than a run that stopped itself can keep (it keeps PATIENCE fewer than it chose)
         capped = lines == "auto" and len(seq) - 1 > residual.MAX_AUTO - residual.PATIENCE
         err = canvas.error()
+        eye, canvas.eye = canvas.eye, None  # the stop is made: the refinement needs the pixel error only
         report("refining")
         seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
         area = float(w.sum())
         out = {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
                "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
                "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
-        if canvas.eye is not None:  # the stop's figure: the error as the eye sees it, before the polish
-            eye_area = max(float(np.sum(canvas.eye.s ** 2)), 1e-12)
-            out["eye_rms"] = round(float(np.sqrt(canvas.eye.error() / eye_area)), 5)
+        if eye is not None:  # the stop's figure: the error as the eye sees it, before the polish
+            out["eye_rms"] = round(float(np.sqrt(eye.error() / max(float(np.sum(eye.s ** 2)), 1e-12))), 5)
         if capped:
             out["line_cap"] = residual.MAX_AUTO
             log.info("residual: stopped at the line cap of %d lines, not because the picture was matched",

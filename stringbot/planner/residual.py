@@ -123,6 +123,7 @@ class Canvas:
         n = len(self.pin_xy)
         self.uses = np.zeros((n, n), dtype=np.int32)
         self._mark = np.zeros(m * m, dtype=np.int64)  # scratch: first occurrence of a pixel
+        self._fmark = None  # the same for the fine canvas's samples
         # a thread's own overlap: half its sum of squared coverage per unit of coverage (measured on a
         # horizontal and a diagonal thread); the second-order cost of its darkness where none is wanted
         kap = []
@@ -185,7 +186,9 @@ class Canvas:
                 new, turns = old - (old > 0), old == 1
             return flat, new, cu, np.bincount(inv[turns], minlength=len(cu)) * (sign / (self.f * self.f))
         every = np.concatenate([fp[0] for fp, _ in parts])
-        flat, inv = np.unique(every, return_inverse=True)
+        if self._fmark is None:  # scratch for the samples (allocated the first time several chords change)
+            self._fmark = np.zeros(self.F * self.F, dtype=np.int64)
+        flat, inv = unique(every, self._fmark)
         d = np.bincount(inv, weights=np.concatenate([np.full(len(fp[0]), s) for fp, s in parts]),
                         minlength=len(flat)).astype(np.int64)
         old = self.C[flat].astype(np.int64)
