@@ -1,17 +1,22 @@
-"""Quality: stringbot's methods against the peers' real plans, all scored by one scorer.
+"""Quality: stringbot's methods against the peers' real plans, all scored by one neutral yardstick.
 
 For each test picture the peers' plans (``../shared/reference/peers/``:
-ThreadTone, the paper's greedy baseline, with its own stopping rule, and
-marco-giunta/stringart at ThreadTone's line count) are read from their JSON
-(``pin_xy``, ``crop``, ``sequence``) and scored exactly as ``stringbot
-score`` scores a plan: the paper's SSIM (section 4.1) with Wang et al.'s
-Gaussian window and scikit-image's default window, plain and blurred, and the
-as-woven error (lower is better).  stringbot's methods run at ThreadTone's
-line count on the same picture (300 pins, 401 px, the default crop):
-``fitness`` (the paper, style auto), ``greedy`` (ThreadTone as published, at
-its own 1001 px and luminance gray) and ``residual`` (the default planner).  ``woven`` adds ``stringbot plan IMG
+ThreadTone, the paper's greedy baseline, with its own stopping rule;
+marco-giunta/stringart at ThreadTone's line count; Prem-Dharshan/string-art
+with the real 0.25 mm thread on 500 mm, its own line count) are read from
+their JSON (``pin_xy``, ``crop``, ``sequence``) and every plan, theirs and
+ours, is scored exactly as ``stringbot score`` scores it by default: against
+the picture's luminance (``skimage.color.rgb2gray``'s weights, cropped as the
+plan says, the target the peers plan against), the paper's SSIM (section
+4.1) with Wang et al.'s Gaussian window and scikit-image's default window,
+plain and blurred, and the as-woven error (the reference rendering at 512
+px, both blurred by sigma 2 px, RMS over the frame; lower is better).
+stringbot's methods run at ThreadTone's line count on the same picture (300
+pins, 401 px, the default crop): ``fitness`` (the paper, style auto),
+``greedy`` (ThreadTone as published, at its own 1001 px and gray) and
+``residual`` (the default planner).  ``woven`` adds ``stringbot plan IMG
 --machine grbl-ring`` as a user gets it (auto lines): its as-woven error is
-compared with the better of the two peers.
+compared with the best of the three peers.
 
 Usage: python benchmarks/quality_table.py [--methods fitness,greedy,residual,woven] [--images DIR]
            [--sheet docs/contact-sheet.png] [--json]
@@ -31,7 +36,7 @@ DEFAULT_IMAGES = SHARED / "images"
 sys.path.insert(0, str(ROOT))
 from stringbot.planner.methods import METHODS  # noqa: E402
 DEFAULT_PEERS = SHARED / "reference" / "peers"
-PEERS = ("threadtone", "giunta")
+PEERS = ("threadtone", "giunta", "premdharshan")
 KEYS = ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred", "woven_error")
 
 
@@ -45,14 +50,11 @@ def peer_plan(path):
                 stats={"seconds": d.get("seconds")})
 
 
-def score_plan(plan, image, weights):
-    """Score a plan against its picture as `stringbot score` does (its own crop, the picture's gray)."""
-    from stringbot.planner.image import read_picture
-    from stringbot.planner.scoring import SCORE_SIZE, WOVEN_SIZE, score
+def score_plan(plan, image):
+    """Score a plan against its picture as `stringbot score` does: its own crop, the picture's luminance."""
+    from stringbot.planner.scoring import score_picture
 
-    ref = read_picture(image, size=SCORE_SIZE, crop=plan.crop, weights=weights)
-    woven = read_picture(image, size=WOVEN_SIZE, crop=plan.crop, weights=weights)
-    return score(plan, ref.gray, woven_gray=woven.gray)
+    return score_picture(plan, image, target="luminance")
 
 
 def short_share(plan, fraction=30):
@@ -67,14 +69,16 @@ def sheet_tile(plan, side):
 
     from stringbot.planner.scoring import woven_drawing
 
-    return resize(woven_drawing(plan.chord_list(), plan.pin_xy), (side, side), anti_aliasing=True)
+    return resize(woven_drawing(plan.chord_list(), plan.pin_xy, thread_fraction=plan.thread_model().fraction),
+                  (side, side), anti_aliasing=True)
 
 
-def source_tile(image, crop, weights, side):
+def source_tile(image, crop, side):
     from stringbot.planner.fitness import frame_mask
     from stringbot.planner.image import read_picture
+    from stringbot.planner.scoring import LUMINANCE
 
-    g = read_picture(image, size=side, crop=crop, weights=weights).gray / 255.0
+    g = read_picture(image, size=side, crop=crop, gray="luminance", weights=LUMINANCE).gray / 255.0
     return np.where(frame_mask(side, "circle"), g, 1.0)
 
 
@@ -102,19 +106,20 @@ def contact_sheet(rows, names, titles, path, side=260):
     write_atomic(path, buf.getvalue())
 
 
-def run_methods(path, methods, k, pic, pins, size):
-    """stringbot's plans of one picture at ``k`` lines (and ``woven``: as a user gets it)."""
+def run_methods(path, methods, k, pins, size):
+    """stringbot's plans of one picture at ``k`` lines (and ``woven``: as a user gets it), each method reading
+    the picture as it does by default."""
     from stringbot.planner.build import plan_picture
 
     plans = {}
     for m in methods:
         t = time.perf_counter()
         if m == "woven":  # `stringbot plan IMG --machine grbl-ring`: the default method, auto lines, 500 / 0.25 mm
-            p = plan_picture(path, pins=pins, size=size, picture=pic, diameter_mm=500.0, thread_mm=0.25)
-        elif METHODS[m].size or METHODS[m].gray != "decolor":  # its own working size and gray (greedy:
-            p = plan_picture(path, pins=pins, lines=k, method=m)  # ThreadTone's 1001 px, luminance)
+            p = plan_picture(path, pins=pins, size=size, diameter_mm=500.0, thread_mm=0.25)
+        elif METHODS[m].size:  # its own working size (greedy: ThreadTone's 1001 px)
+            p = plan_picture(path, pins=pins, lines=k, method=m)
         else:
-            p = plan_picture(path, pins=pins, size=size, lines=k, method=m, picture=pic)
+            p = plan_picture(path, pins=pins, size=size, lines=k, method=m)
         p.stats["bench_seconds"] = round(time.perf_counter() - t, 2)
         plans[m] = p
     return plans
@@ -131,8 +136,8 @@ def main():
     ap.add_argument("--only", default=None, help="comma-separated picture names (default: all)")
     ap.add_argument("--pins", type=int, default=300)
     ap.add_argument("--size", type=int, default=401)
-    ap.add_argument("--sheet", default=None, help="write a contact sheet PNG here (source | ThreadTone | fitness | "
-                                                  "default, as woven)")
+    ap.add_argument("--sheet", default=None, help="write a contact sheet PNG here (source | ThreadTone | giunta | "
+                                                  "Prem-Dharshan | stringbot, all as woven)")
     ap.add_argument("--json", action="store_true")
     opts = ap.parse_args()
 
@@ -145,14 +150,14 @@ def main():
         paths = [p for p in paths if p.stem in keep]
     results, rows, names = [], [], []
     for path in paths:
-        pic = read_picture(path, size=opts.size)
+        crop = read_picture(path, size=32).crop  # the default crop (the source tile's)
         peers = {name: peer_plan(Path(opts.peers) / f"{name}_{path.stem}.json") for name in PEERS}
         k = len(peers["threadtone"].sequence) - 1
         plans = dict(peers)
-        plans.update(run_methods(path, methods, k, pic, opts.pins, opts.size))
+        plans.update(run_methods(path, methods, k, opts.pins, opts.size))
         row = {"image": path.stem, "lines": k}
         for name, plan in plans.items():
-            s = score_plan(plan, path, pic.weights)
+            s = score_plan(plan, path)
             row[name] = {key: round(s[key], 4) for key in KEYS}
             row[name].update(lines=s["lines"], short=round(short_share(plan), 3),
                              seconds=plan.stats.get("bench_seconds", plan.stats.get("seconds")))
@@ -166,10 +171,11 @@ def main():
                       f"  short {100 * r['short']:.0f}%  {r['seconds']} s")
             sys.stdout.flush()
         if opts.sheet:
-            tiles = [source_tile(path, pic.crop, pic.weights, 260)]
-            tiles += [sheet_tile(plans[m], 260) for m in ("threadtone", "fitness", "woven") if m in plans]
+            tiles = [source_tile(path, crop, 260)]
+            tiles += [sheet_tile(plans[m], 260) for m in PEERS + ("woven",) if m in plans]
             rows.append(tiles)
-            names.append(f"{path.stem}: {k} lines")
+            names.append(f"{path.stem}: " + ", ".join(f"{plans[m].stats.get('lines', len(plans[m].chord_list()))}"
+                                                      for m in PEERS + ("woven",) if m in plans) + " lines")
     summary = {}
     for name in list(PEERS) + methods:
         if name == "woven":
@@ -179,20 +185,23 @@ def main():
         if m == "woven":
             continue
         for peer in PEERS:
-            d = [r[m]["ssim"] - r[peer]["ssim"] for r in results]
-            summary[f"{m} - {peer}"] = {"ssim_mean": round(float(np.mean(d)), 4), "ssim_min": round(float(min(d)), 4),
-                                        "ssim_blurred_mean": round(float(np.mean(
-                                            [r[m]["ssim_blurred"] - r[peer]["ssim_blurred"] for r in results])), 4)}
+            summary[f"{m} - {peer}"] = {}
+            for key in ("ssim", "ssim_uniform", "ssim_blurred", "ssim_uniform_blurred"):
+                d = [r[m][key] - r[peer][key] for r in results]
+                summary[f"{m} - {peer}"].update({f"{key}_mean": round(float(np.mean(d)), 4),
+                                                 f"{key}_min": round(float(min(d)), 4)})
     if "woven" in methods:
         summary["woven / best peer"] = {r["image"]: round(r["woven"]["woven_error"] / min(
             r[p]["woven_error"] for p in PEERS), 3) for r in results}
+        summary["best peer"] = {r["image"]: min(PEERS, key=lambda p: r[p]["woven_error"]) for r in results}
     if opts.json:
         print(json.dumps({"rows": results, "summary": summary}, indent=1))
     else:
         for name, v in summary.items():
             print(f"{name:<22} {v}")
     if opts.sheet:
-        contact_sheet(rows, names, ["source", "ThreadTone", "paper fitness", "default (auto lines)"], opts.sheet)
+        contact_sheet(rows, names, ["source (luminance)", "ThreadTone", "giunta", "Prem-Dharshan",
+                                    "stringbot (auto lines)"], opts.sheet)
         if not opts.json:
             print(f"contact sheet -> {opts.sheet}")
 

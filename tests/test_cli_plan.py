@@ -132,6 +132,32 @@ def test_score_table_and_json_agree(tmp_path, picture):
     assert worse["woven_error"] > s["woven_error"]
 
 
+def test_score_is_against_luminance_and_the_plans_own_gray_on_a_second_line(tmp_path):
+    # a blue disc on yellow: luminance sees a dark disc on light (0.07 B against 0.93 R + G); a decolorization
+    # that weighs blue most sees it the other way round
+    y, x = np.mgrid[:120, :120]
+    disc = (x - 60) ** 2 + (y - 50) ** 2 < 30 ** 2
+    rgb = np.where(disc[..., None], [20, 20, 230], [240, 230, 40]).astype(np.uint8)
+    img = tmp_path / "blue.png"
+    Image.fromarray(rgb).save(img)
+    out = tmp_path / "p.json"
+    assert run("plan", img, "-o", out, *SMALL, "--lines", "80", "--gray", "luminance")[0] == 0
+    doc = json.loads(out.read_text())
+    doc["parameters"]["gray_requested"], doc["parameters"]["gray_weights"] = "decolor", [0.1, 0.1, 0.8]
+    out.write_text(json.dumps(doc))  # as if planned against a blue-heavy decolorization
+    code, js, err = run("score", out, "--json")
+    assert code == 0, err
+    s = json.loads(js)
+    assert s["target"] == "luminance" and s["own_gray"]["weights"] == [0.1, 0.1, 0.8]
+    # threads on the disc: right against luminance, wrong against the blue-heavy gray (the disc light there)
+    assert s["woven_error"] < s["own_gray"]["woven_error"]
+    assert s["ssim_blurred"] > s["own_gray"]["ssim_blurred"]
+    code, table, _ = run("score", out)
+    own = [ln for ln in table.splitlines() if ln.startswith("own gray")]
+    assert len(own) == 1 and f"woven {s['own_gray']['woven_error']:.4f}" in own[0] and "0.100, 0.100, 0.800" in own[0]
+    assert f"{s['woven_error']:.4f}" in table.splitlines()[6] and "luminance" in table
+
+
 def test_machine_gives_the_pin_count(tmp_path, picture):
     from firmware_protocol.machine import load_machine
 
@@ -334,9 +360,9 @@ def test_plan_records_the_thread_and_renders_as_woven_by_default(tmp_path, pictu
     # at 301 px: gray, anti-aliased, and lighter overall than 1-pixel lines
     assert set(np.unique(binary)) <= {0.0, 255.0}
     assert len(np.unique(woven)) > 20 and woven.mean() > binary.mean()
-    # the preview is the woven drawing at 1001 px
+    # the preview is the woven drawing at 1001 px (2 px wide threads there, 4 x 4 samples a pixel at least)
     preview = np.asarray(Image.open(tmp_path / "p.png"))
-    assert preview.shape == (1001, 1001) and len(np.unique(preview)) > 20
+    assert preview.shape == (1001, 1001) and len(np.unique(preview)) > 10
 
 
 def test_old_plans_without_thread_fields_still_read(tmp_path, picture):

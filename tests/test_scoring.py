@@ -26,12 +26,13 @@ def test_woven_error_of_a_blank_board():
     assert woven_error([], xy, gray, frame="square") == pytest.approx(1 - 102 / 255, abs=1e-6)
 
 
-def test_woven_drawing_draws_threads_as_wide_as_one_2048th_of_the_frame():
-    xy = np.array([[0.0, 0.5], [1.0, 0.5]])
-    img = woven_drawing([(0, 1)], xy)
-    # a 1/2048 thread on a 512 px picture takes a quarter of a pixel's width: 0.25 of darkness per column
-    darkness = (1.0 - img).sum(axis=0)
-    assert np.allclose(darkness[8:-8], 0.25, atol=0.01)
+def test_woven_drawing_draws_threads_at_their_width():
+    xy = np.array([[0.0, 0.5013], [1.0, 0.5017]])
+    # 0.25 mm on 500 mm (the default) on a 512 px picture: 0.256 of a pixel's width, darkness per column
+    darkness = (1.0 - woven_drawing([(0, 1)], xy)).sum(axis=0)
+    assert np.allclose(darkness[8:-8].mean(), 0.256, atol=0.01)
+    wide = (1.0 - woven_drawing([(0, 1)], xy, thread_fraction=1.0 / 500)).sum(axis=0)
+    assert np.allclose(wide[8:-8].mean(), 1.024, atol=0.02)
 
 
 def test_woven_error_rewards_thread_where_the_picture_is_dark():

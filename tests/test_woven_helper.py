@@ -38,10 +38,8 @@ def test_two_processes_make_the_plan_one_makes(monkeypatch):
     assert one.stats["polish"]["rerouted"] > 0
     assert two.sequence == one.sequence
     assert two.stats["polish"]["woven_rms"] == one.stats["polish"]["woven_rms"]
-    # the helper drew the chosen threads while they were chosen (all but at most the last PATIENCE), and hands
-    # back the polish's canvas
+    # the helper drew the chosen threads while they were chosen (all but at most the last PATIENCE)
     assert len(two.sequence) - 1 - PATIENCE <= two.stats["polish"]["drawn_early"] <= len(two.sequence) - 1
-    np.testing.assert_array_equal(two.woven_cover, one.woven_cover)
     assert _no_children_left()
 
 
@@ -89,39 +87,37 @@ def test_the_number_of_processes_follows_the_setting(monkeypatch):
 
 
 def test_the_twin_draws_the_preview_one_process_would(monkeypatch):
-    from stringbot.planner.render import draw_woven, png_bytes, preview_png
+    from stringbot.planner.render import png_bytes, preview_drawing, preview_png
 
     one = _plan(monkeypatch, 1, preview=1001)
     two = _plan(monkeypatch, 2, preview=1001)
     assert one.woven_drawings is None and two.woven_drawings is not None
-    assert two.woven_cover is None  # the canvas did not come back: the twin drew the preview
-    np.testing.assert_array_equal(draw_woven(two, size=1001), draw_woven(one, size=1001))
+    np.testing.assert_array_equal(preview_drawing(two, 1001), preview_drawing(one, 1001))
     # the twin encoded the PNG too: the bytes the planner's own process would write
-    assert two.woven_drawings.png(1001, 255, 0) == png_bytes(draw_woven(one, size=1001))
+    assert two.woven_drawings.png(1001, 255, 0) == png_bytes(preview_drawing(one, 1001))
     assert preview_png(two, 1001) == preview_png(one, 1001)
     assert two.woven_drawings(501, 255, 0) is None  # another size: drawn by the caller
     assert two.woven_drawings.png(501, 255, 0) is None
-    assert preview_png(two, 501) == png_bytes(draw_woven(two, size=501))  # drawn here
+    assert preview_png(two, 501) == png_bytes(preview_drawing(two, 501))  # drawn here
     two.woven_drawings.close()
     assert _no_children_left()
 
 
 def test_a_twin_that_does_not_draw_leaves_the_preview_here(monkeypatch, caplog):
-    from stringbot.planner.render import draw_woven, png_bytes, preview_png
+    from stringbot.planner.render import png_bytes, preview_drawing, preview_png
 
     one = _plan(monkeypatch, 1, preview=1001)
 
-    def no_drawing(self, canvas):
+    def no_drawing(self, canvas, seq):
         self._say.close()  # the twin ends without a word
 
     monkeypatch.setattr(woven_helper.TwinDrawing, "make", no_drawing)
     two = _plan(monkeypatch, 2, preview=1001)
     with caplog.at_level(logging.WARNING, logger="stringbot.planner.woven_helper"):
-        img = draw_woven(two, size=1001)
+        img = preview_drawing(two, 1001)
     assert "did not draw the preview" in caplog.text
-    # drawn here from the plan's threads: the same picture but for the float32 rounding of a canvas
-    # changed chord by chord
-    assert np.abs(img.astype(float) - draw_woven(one, size=1001)).mean() < 0.1
+    # drawn here from the plan's threads: the drawing the twin would have made
+    np.testing.assert_array_equal(img, preview_drawing(one, 1001))
     assert two.woven_drawings.png(1001, 255, 0) is None and preview_png(two, 1001) == png_bytes(img)
     assert two.sequence == one.sequence
     two.woven_drawings.close()

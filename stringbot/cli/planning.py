@@ -57,8 +57,9 @@ class _Lines(click.ParamType):
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
 @click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
-              help="Colour to gray: contrast-preserving decolorization or plain luminance "
-                   "[default: decolor; greedy: luminance, ThreadTone's].")
+              help="Colour to gray: contrast-preserving decolorization or plain luminance (0.2125 R + 0.7154 G + "
+                   "0.0721 B; greedy: ThreadTone's 0.299 R + 0.587 G + 0.114 B) [default: luminance; fitness: "
+                   "decolor, the paper's].")
 @click.option("--alpha", type=float, default=0.0, show_default=True, help="Edge weight in b (0..1).")
 @click.option("--style", type=click.Choice(["auto", "detail", "fill"]), default=None,
               help="Fitness knobs: detail (the paper's beta 5, gamma 10, T 30), fill (150, 300, 1: fills flat dark "
@@ -308,14 +309,16 @@ def _refuse_the_source(output, plan_path, plan):
 @click.option("--colour", "colour", is_flag=True,
               help="Score a one-colour plan as a colour plan would be (always so for a colour plan).")
 def score_cmd(plan, image, as_json, colour):
-    """Score PLAN against IMAGE (default: the plan's source).
+    """Score PLAN against IMAGE (default: the plan's source): against the picture's luminance
+    (0.2125 R + 0.7154 G + 0.0721 B, as skimage's rgb2gray), and on a second line against the gray the
+    plan was made against (its decolorization).
 
     The paper's SSIM (section 4.1: 1-pixel chords at 1001 px, both at 201 px,
     plain and blurred) with Wang et al.'s 11 x 11 Gaussian window and with
-    scikit-image's default 7 x 7 window, and the as-woven error (the plan
-    woven at 2048 px with a thread 1/2048 of the frame wide, box-filtered to
-    512 px, against the picture at 512 px, both blurred by sigma 2 px: RMS over
-    the frame, gray levels 0..1, lower is better).
+    scikit-image's default 7 x 7 window, and the as-woven error (the plan's
+    reference rendering at 512 px: its thread at its real width with a sharp
+    edge, converged; against the picture at 512 px, both blurred by sigma 2 px:
+    RMS over the frame, gray levels 0..1, lower is better).
 
     A colour plan (and any plan with --colour) is scored in colour: the mean
     CIEDE2000 between the picture and the plan as woven (both at 201 px,
@@ -324,9 +327,8 @@ def score_cmd(plan, image, as_json, colour):
     import json
     import os
 
-    from ..planner.image import read_picture
     from ..planner.plan_file import read_plan
-    from ..planner.scoring import BLUR_SIGMA, SCORE_SIZE, WOVEN_SIZE, score
+    from ..planner.scoring import BLUR_SIGMA
 
     p = read_plan(plan)
     if image is None:
@@ -338,32 +340,36 @@ def score_cmd(plan, image, as_json, colour):
             image = beside  # a relative source path, taken from the plan's folder
     if colour or not p.is_mono:
         return _score_colour(p, plan, image, as_json)
-    gray = p.parameters.get("gray_requested", "decolor")
-    weights = p.parameters.get("gray_weights")
-    if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):
-        weights = None
-    gray = gray if gray in ("decolor", "luminance") else "decolor"
-    pic = read_picture(image, size=SCORE_SIZE, crop=p.crop, weights=weights, gray=gray)
-    if weights is None:
-        weights = pic.weights
-    woven = read_picture(image, size=WOVEN_SIZE, crop=p.crop, weights=weights, gray=gray)
-    if p.source.get("sha256") and p.source["sha256"] != pic.source["sha256"]:
+    from ..planner.scoring import score_picture
+
+    r = score_picture(p, image, target="luminance")
+    if p.source.get("sha256") and p.source["sha256"] != r["source"]["sha256"]:
         log.warning("%s is not the picture the plan was made from (sha256 differs)", image)
-    r = score(p, pic.gray, woven_gray=woven.gray)
+    own = score_picture(p, image, target="own") if r["weights"] is not None else r  # a gray picture: one gray
+    keys = ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred", "woven_error")
     if as_json:
         click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "connected": p.connected,
-                               "lines": r["lines"], **{k: round(v, 4) for k, v in r.items() if k != "lines"},
+                               "lines": r["lines"], "target": "luminance", **{k: round(r[k], 4) for k in keys},
+                               "own_gray": {"weights": own["weights"], **{k: round(own[k], 4) for k in keys}},
                                "blur_sigma": BLUR_SIGMA}))
-    else:
-        click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} "
-                   f"{p.method}{'' if p.connected else ' (disconnected)'}\n{'lines':<10} {r['lines']}\n"
-                   f"{'SSIM':<10} {r['ssim']:.4f}   (Gaussian 11x11 window; scikit-image default 7x7: "
-                   f"{r['ssim_uniform']:.4f})\n"
-                   f"{'blurred':<10} {r['ssim_blurred']:.4f}   (7x7: {r['ssim_uniform_blurred']:.4f})\n"
-                   f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)\n"
-                   "SSIM compares the drawing with the picture, both 201 px (the paper's section 4.1): 1 is "
-                   "the picture itself, 0 nothing in common; higher is better. 'blurred' compares them after "
-                   "a blur (sigma 2 px), as the eye sees the painting from afar.")
+        return
+    w = own["weights"]
+    how = "the picture is gray" if w is None else \
+        f"{p.parameters.get('gray', 'decolor')} {', '.join(f'{x:.3f}' for x in w)}"
+    click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} "
+               f"{p.method}{'' if p.connected else ' (disconnected)'}\n{'lines':<10} {r['lines']}\n"
+               f"{'SSIM':<10} {r['ssim']:.4f}   (Gaussian 11x11 window; scikit-image default 7x7: "
+               f"{r['ssim_uniform']:.4f})\n"
+               f"{'blurred':<10} {r['ssim_blurred']:.4f}   (7x7: {r['ssim_uniform_blurred']:.4f})\n"
+               f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)\n"
+               f"{'own gray':<10} SSIM {own['ssim']:.4f} / blurred {own['ssim_blurred']:.4f}, 7x7 "
+               f"{own['ssim_uniform']:.4f} / {own['ssim_uniform_blurred']:.4f}, woven {own['woven_error']:.4f}"
+               f"   (against the gray the plan was made against: {how})\n"
+               "The figures above the last line compare the plan with the picture's luminance (0.2125 R + "
+               "0.7154 G + 0.0721 B, as skimage's rgb2gray), for 'woven' the plan drawn as it will hang. "
+               "SSIM compares the drawing with the picture, both 201 px (the paper's section 4.1): 1 is "
+               "the picture itself, 0 nothing in common; higher is better. 'blurred' compares them after "
+               "a blur (sigma 2 px), as the eye sees the painting from afar.")
 
 
 def _score_colour(p, plan, image, as_json):

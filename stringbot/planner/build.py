@@ -185,7 +185,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     alpha, epsilon, iterations
         The knobs (see ``stringbot plan --help`` and docs/planner.md).  ``size``
         None: 1001 for greedy (ThreadTone's own), else 401; ``gray`` None:
-        luminance for greedy (ThreadTone's), else decolor.  ``start_pin`` None:
+        decolor for fitness (the paper's), else luminance (greedy: with
+        ThreadTone's weights, ``cv2.COLOR_BGR2GRAY``'s).  ``start_pin`` None:
         ``pins // 4`` for greedy (ThreadTone's pin 0 faces right), the pin of
         the best chord for residual (recorded in the plan), else 0;
         greedy's default crop is ThreadTone's square (whole-pixel offsets).
@@ -237,7 +238,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     how = get_method(method)
     if size is None:  # ThreadTone works on a 1001-px picture (imgRadius 500), the paper on 401 px
         size = how.size or DEFAULTS["size"]
-    if gray is None:  # ThreadTone grays by luminance (cv2.COLOR_BGR2GRAY), the paper by decolorization
+    if gray is None:  # the paper grays by decolorization; the piece as woven is seen by its luminance
         gray = how.gray
     auto_start = start_pin is None and method == "residual"  # residual: the pin of the best chord
     if start_pin is None:  # ThreadTone starts at its pin 0, which faces right: our pin pins / 4
@@ -272,7 +273,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         crop = fit_crop(path, frame)
     report("reading the picture")
     # greedy reads the picture as ThreadTone does: cv2.resize, bilinear
-    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng, resample=how.resample)
+    pic = picture or read_picture(path, size=size, crop=crop, gray=gray, rng=rng, resample=how.resample,
+                                  weights=how.weights_for(gray))
     weights = None
     if importance is not None:
         weights = read_mask(importance, size=size, crop=pic.crop,
@@ -293,9 +295,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
               "start_pin": start_pin, "method": method, "disconnected": bool(disconnected),
               "gray": pic.gray_method, "gray_requested": gray, "gray_weights": pic.weights,
               "importance": str(importance) if importance is not None else None}
-    chords = woven_cover = woven_drawings = None
+    chords = woven_drawings = None
     if method == "residual":
-        seq, extra, woven_cover, woven_drawings = _residual_run(
+        seq, extra, woven_drawings = _residual_run(
             space, pic, mask, weights, lines if lines == "auto" else k, model,
             start_pin=None if auto_start else start_pin, refine=refine, polish=polish, preview=preview)
         params["start_pin"] = int(seq[0])
@@ -344,7 +346,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                 pins=pins, frame=frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=[int(p) for p in seq],
                 method=method, parameters=params, source=pic.source, stats=stats,
                 connected=chords is None, chords=[(int(a), int(b)) for a, b in (chords or [])],
-                woven_cover=woven_cover, woven_drawings=woven_drawings)
+                woven_drawings=woven_drawings)
 
 
 def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None):
@@ -360,7 +362,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
         raise BadInput("residual found nothing to draw: the picture is blank inside the frame; "
                        "expected a picture with some dark parts")
     w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
-    canvas = Canvas(target, w, space.pin_xy, model.width_px(size))
+    canvas = Canvas(target, w, space.pin_xy, model.width_px(size), eye=lines == "auto")
     # points about every 1/400 of the frame along each chord (at 801 px every other pixel: the mean
     # residual along a chord needs no more, and this halves the work of large sizes); every 1/200 for
     # a plan to be polished (see CHOOSE_POINTS_POLISHED)
@@ -385,19 +387,22 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
         # more lines than a run that stopped itself can keep (it keeps PATIENCE fewer than it chose)
         capped = lines == "auto" and len(seq) - 1 > residual.MAX_AUTO - residual.PATIENCE
         err = canvas.error()
+        eye, canvas.eye = canvas.eye, None  # the stop is made: the refinement needs the pixel error only
         report("refining")
         seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
         area = float(w.sum())
         out = {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
                "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
                "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
+        if eye is not None:  # the stop's figure: the error as the eye sees it, before the polish
+            out["eye_rms"] = round(float(np.sqrt(eye.error() / max(float(np.sum(eye.s ** 2)), 1e-12))), 5)
         if capped:
             out["line_cap"] = residual.MAX_AUTO
             log.info("residual: stopped at the line cap of %d lines, not because the picture was matched",
                      residual.MAX_AUTO)
         del canvas, pin_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
         if not polish:
-            return seq, out, None, None
+            return seq, out, None
         t = time.perf_counter()
         report("polishing")
         done = None if helper is None else helper.finish(seq, polish)
@@ -407,9 +412,9 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
             woven = _woven_canvas(target, w, space, model)
             woven.build(list(zip(seq[:-1], seq[1:])))
             done = polish_plan(woven, seq, space, budget=polish)
-        seq, ps, cover = done
+        seq, ps = done
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
-        return seq, out, cover, drawings
+        return seq, out, drawings
     finally:
         if helper is not None:
             helper.close()

@@ -16,7 +16,9 @@ The planner only ever sees a ``size x size`` float array of gray levels in
    decoded image (and no full-size float array) is ever made.
 3. The reduced crop is resampled to ``size x size`` (Lanczos).
 4. Colour becomes gray by the real-time contrast-preserving decolorization
-   of Lu, Xu and Jia (2012), or by plain luminance.
+   of Lu, Xu and Jia (2012), or by plain luminance (:data:`LUMINANCE`:
+   ``skimage.color.rgb2gray``'s weights; ThreadTone's are
+   :data:`CV2_LUMINANCE`).
 """
 
 import logging
@@ -30,8 +32,13 @@ from ..errors import BadInput
 log = logging.getLogger(__name__)
 
 __all__ = ["Picture", "read_picture", "decolorize", "default_crop", "default_crop_share", "fit_crop", "parse_crop",
-           "MAX_PIXELS"]
+           "MAX_PIXELS", "LUMINANCE", "CV2_LUMINANCE"]
 
+#: plain luminance: ``skimage.color.rgb2gray``'s weights (Rec. 709) on the sRGB values, what the scorer
+#: compares with (:mod:`stringbot.planner.scoring`)
+LUMINANCE = (0.2125, 0.7154, 0.0721)
+#: OpenCV's ``COLOR_BGR2GRAY`` (Rec. 601), ThreadTone's
+CV2_LUMINANCE = (0.299, 0.587, 0.114)
 MAX_PIXELS = 1_000_000_000      # refuse larger pictures outright
 MAX_DECODED_BYTES = 1_200_000_000  # PIL's decoded image must fit in this
 MIN_SIDE = 8
@@ -312,7 +319,7 @@ def read_picture(path, *, size=401, crop=None, gray="decolor", what="picture", r
     if weights is not None:
         wts = tuple(float(v) for v in weights)
     elif gray == "luminance":
-        wts = (0.299, 0.587, 0.114)
+        wts = LUMINANCE
     elif gray == "decolor":
         wts = decolorize(rgb, rng=rng)
     else:

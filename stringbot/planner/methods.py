@@ -41,6 +41,9 @@ class Method:
         How it grays a colour picture when ``--gray`` is not given.
     resample : str
         How it scales the picture (``lanczos``, ``bilinear``).
+    luminance_weights : str
+        ``"module:name"`` of the RGB weights it grays by when its gray is ``luminance`` (``""``:
+        skimage's rgb2gray weights).
     start_quarter : bool
         Its first pin is ``pins // 4`` when ``--start-pin`` is not given (else 0; ``residual``
         picks an end of its best chord).
@@ -61,6 +64,7 @@ class Method:
     size: int | None = None
     gray: str = "decolor"
     resample: str = "lanczos"
+    luminance_weights: str = ""
     start_quarter: bool = False
     crop: str = ""
     stops_itself: bool = False
@@ -69,6 +73,10 @@ class Method:
     def runner(self):
         """The run function (imported now: it may need numpy)."""
         return _resolve(self.run)
+
+    def weights_for(self, gray):
+        """The RGB weights it grays by with ``gray`` (None: the planner's own)."""
+        return _resolve(self.luminance_weights) if gray == "luminance" and self.luminance_weights else None
 
     def default_crop(self, path):
         """Its crop of the picture at ``path`` when none is given, or None."""
@@ -100,9 +108,10 @@ def _resolve(dotted):
 #: Every method, by name; the first is the default.
 METHODS = {m.name: m for m in (
     Method("residual", "chords chosen by what the picture as woven still lacks, then refined",
-           knobs=("refine", "polish"), stops_itself=True),
+           knobs=("refine", "polish"), gray="luminance", stops_itself=True),  # the piece is seen by its luminance
     Method("fitness", "the paper's method", knobs=("disconnected", "style", "beta", "gamma", "T")),
     Method("greedy", "ThreadTone as published", size=1001, gray="luminance", resample="bilinear",
+           luminance_weights="stringbot.planner.image:CV2_LUMINANCE",
            start_quarter=True, crop="stringbot.planner.image:threadtone_crop",
            run="stringbot.planner.greedy:plan_greedy"),
 )}

@@ -116,10 +116,6 @@ class Plan:
     diameter_mm, thread_mm : float or None
         The frame's diameter and the thread's width (see :mod:`stringbot.planner.thread`);
         None where the plan does not record them (drawn with 500 mm and 0.25 mm).
-    woven_cover : ndarray of float32, shape (n, n), or None
-        The coverage of the sequence as woven, capped at 1, on the fine canvas of
-        the polish (:mod:`stringbot.planner.woven`): the preview is drawn from it
-        instead of drawing every thread again.  Not saved; None otherwise.
     woven_drawings : callable or None
         ``woven_drawings(size, board, thread)``: the drawing as woven
         (:func:`~stringbot.planner.render.draw_woven`) made already by the
@@ -143,8 +139,6 @@ class Plan:
     colors: list[str] = field(default_factory=lambda: [MONO_COLOR])
     layer_starts: list[int] = field(default_factory=lambda: [0])
     background: str = MONO_BACKGROUND
-    #: the plan's coverage as woven on a fine canvas, when the planner drew it (not saved)
-    woven_cover: object = field(default=None, repr=False, compare=False)
     #: the drawing as woven, when the polish's helper made it (not saved)
     woven_drawings: object = field(default=None, repr=False, compare=False)
 

@@ -151,7 +151,7 @@ def _changed(proposal):
     return [(a, p), (p, c)], [(a, q), (q, c)]
 
 
-def polish_plan(canvas, seq, space, *, budget, partner=None, cover=True):
+def polish_plan(canvas, seq, space, *, budget, partner=None):
     """Polish a pin sequence against the picture as woven (see the module notes).
 
     Parameters
@@ -166,8 +166,6 @@ def polish_plan(canvas, seq, space, *, budget, partner=None, cover=True):
         ``partner(canvas, seq, order, pin_lines)`` returns a partner for
         :func:`polish_pins` (a forked process: :func:`~stringbot.planner.woven_helper.twin`),
         or None to polish alone.
-    cover : bool
-        Return the coverage (False: None, for a caller that does not want it).
 
     Returns
     -------
@@ -175,13 +173,10 @@ def polish_plan(canvas, seq, space, *, budget, partner=None, cover=True):
     stats : dict
         ``tried``, ``rerouted``, ``woven_rms_before`` and ``woven_rms`` (the model's as-woven
         error, rms over the frame).
-    cover : ndarray of float32, shape (F, F), or None
-        The polished sequence's coverage on the fine canvas, capped at 1 (None when nothing was polished, or
-        ``cover`` is False).
     """
     seq = [int(p) for p in seq]
     if len(seq) < 3 or budget <= 0:
-        return seq, {"tried": 0, "rerouted": 0, "woven_rms_before": None, "woven_rms": None}, None
+        return seq, {"tried": 0, "rerouted": 0, "woven_rms_before": None, "woven_rms": None}
     e0 = canvas.error()
     pin_lines = polish_lines(space, canvas)
     order = badness_order(canvas, seq, pin_lines)[:budget]
@@ -197,4 +192,4 @@ def polish_plan(canvas, seq, space, *, budget, partner=None, cover=True):
              "woven_rms": round(float(np.sqrt(max(canvas.error(), 0.0) / area)), 5)}
     log.info("polish: %d of %d pins rerouted; as-woven rms %.4f -> %.4f", rerouted, len(order),
              stats["woven_rms_before"], stats["woven_rms"])
-    return seq, stats, np.minimum(canvas.Sf, 1.0).reshape(canvas.F, canvas.F) if cover else None
+    return seq, stats

@@ -25,6 +25,8 @@ import logging
 
 import numpy as np
 
+from .residual import fresh
+
 log = logging.getLogger(__name__)
 
 __all__ = ["refine_sequence"]
@@ -33,7 +35,7 @@ __all__ = ["refine_sequence"]
 def _chord_score(canvas, pin_lines, a):
     """Mean residual of every chord from pin ``a``: ``(others, scores)``."""
     others, pix, starts, counts = pin_lines.get_with_counts(a)
-    return others, np.add.reduceat(canvas.slope().take(pix), starts) / counts * canvas.gain_row(a, others)
+    return others, fresh(np.add.reduceat(canvas.slope().take(pix), starts) / counts, canvas.uses[a, others])
 
 
 def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):

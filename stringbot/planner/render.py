@@ -1,8 +1,9 @@
 """Drawing a plan: as woven (the default), or the paper's binary drawing.
 
-*As woven* (:func:`draw_woven`): the threads drawn under the thread model
-(:mod:`stringbot.planner.thread`) at the plan's real thread width, black on a
-white board, so the picture predicts the piece.  *Binary* (:func:`draw`):
+*As woven* (:func:`draw_woven`): the reference rendering
+(:mod:`stringbot.planner.reference`: the threads at the plan's real width
+with a sharp edge, their union, converged), black on a white board, so the
+picture predicts the piece.  *Binary* (:func:`draw`):
 black 1-pixel lines (one per chord) on white, pins at ``pin_xy * (size - 1)``
 rounded to pixel centres: the drawing the paper scores (section 4.1,
 :mod:`stringbot.planner.scoring`); a 1-pixel line at 1001 px is a 0.5 mm
@@ -11,7 +12,6 @@ thread on a 500 mm frame, so it looks darker than the piece will.
 
 import io
 import logging
-import math
 
 import numpy as np
 
@@ -19,10 +19,11 @@ from .chords import line_pixels, pin_pixels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw", "draw_woven", "woven_drawing", "fine_side", "png_bytes", "preview_png", "MAX_FINE"]
+__all__ = ["draw", "draw_woven", "woven_image", "preview_drawing", "png_bytes", "preview_png", "PREVIEW_SAMPLES"]
 
-#: largest side of the canvas a drawing as woven is made on before it is averaged down
-MAX_FINE = 4096
+#: samples across one thread in the preview `stringbot plan` writes: half the reference's (a quarter of the
+#: time; its mean lightness as converged, within 0.0002; the drawing within about 0.003 rms, blurred)
+PREVIEW_SAMPLES = 2.0
 
 
 def draw(plan_or_chords, pin_xy=None, *, size=1001):
@@ -54,82 +55,54 @@ def draw(plan_or_chords, pin_xy=None, *, size=1001):
     return img.reshape(size, size)
 
 
-def draw_woven(plan, *, size=1001, board=255, thread=0):
-    """Draw a plan as woven: its threads at their real width, coverage capped at 1, over the board.
+def draw_woven(plan, *, size=1001, board=255, thread=0, samples=None):
+    """Draw a plan as woven: the reference rendering (:mod:`stringbot.planner.reference`) over the board.
 
     Parameters
     ----------
     plan : Plan
-        Its ``diameter_mm`` and ``thread_mm`` give the thread's width.  The
-        threads are drawn where the thread is about one pixel wide (so that
-        two threads on one spot are as dark as one, and two side by side twice
-        as dark), then averaged down to ``size``; a plan just polished is
-        averaged down from the polish's own canvas (its ``woven_cover``), or
-        was drawn so already by the polish's helper (its ``woven_drawings``).
+        Its ``diameter_mm`` and ``thread_mm`` give the thread's width.
     size : int
     board, thread : int
         Gray levels 0..255 of the board and the thread.
+    samples : float, optional
+        Samples across one thread (default: the reference's
+        :data:`~stringbot.planner.reference.SAMPLES_PER_WIDTH`; the preview:
+        :data:`PREVIEW_SAMPLES`).
 
     Returns
     -------
     ndarray of uint8, shape (size, size)
     """
-    from .thread import coverage
+    return woven_image(plan.chord_list(), plan.pin_xy, size=size, thread_fraction=plan.thread_model().fraction,
+                       board=board, thread=thread, samples=samples)
 
+
+def woven_image(chords, pin_xy, *, size, thread_fraction, board=255, thread=0, samples=None):
+    """The reference rendering of chords as uint8 gray."""
+    from .reference import SAMPLES_PER_WIDTH, reference_gray
+
+    gray = reference_gray(chords, pin_xy, size=size, thread_fraction=thread_fraction, board=float(board),
+                          thread=float(thread), samples=SAMPLES_PER_WIDTH if samples is None else samples)
+    return np.clip(np.rint(gray), 0, 255).astype(np.uint8)
+
+
+def preview_drawing(plan, size, *, board=255, thread=0):
+    """The preview `stringbot plan` writes: :func:`draw_woven` with :data:`PREVIEW_SAMPLES`, as the
+    polish's twin drew it already where it did (the plan's ``woven_drawings``)."""
     made = getattr(plan, "woven_drawings", None)  # drawn already, by the polish's helper process
-    if made is not None:
-        img = made(size, board, thread)
-        if img is not None:
-            return img
-    # threads overlap where they overlap at their own width: drawn on the canvas the polish uses (the
-    # thread about one pixel wide; 2048 px for 0.25 mm on 500 mm), or finer for a large drawing, then
-    # averaged down; a plan just polished brings that canvas with it (the same drawing)
-    model = plan.thread_model()
-    side = fine_side(model, size)
-    fine = getattr(plan, "woven_cover", None)
-    if fine is None or fine.shape[0] != side:
-        fine = coverage(plan.chord_list(), plan.pin_xy, size=side, width_px=model.width_px(side))
-    return woven_drawing(fine, size, board=board, thread=thread)
-
-
-def fine_side(model, size):
-    """Side of the canvas a drawing as woven of ``size`` px is made on (:func:`draw_woven`)."""
-    from .woven import GRID, fine_factor
-
-    side = GRID * fine_factor(model.width_px(GRID), GRID)
-    if side < 2 * size:
-        side = size * max(1, min(int(math.ceil(1.0 / model.width_px(size) - 1e-9)), MAX_FINE // size))
-    return side
-
-
-def woven_drawing(fine, size, *, board=255, thread=0):
-    """The drawing of a fine canvas's coverage (capped at 1), averaged down to ``size``: uint8 gray."""
-    from .thread import composite
-
-    k = fine.shape[0] // size
-    n = fine.shape[0] // k
-    if k > 1:  # the mean of each k x k block, as a sum of k * k strided views (a reduction over two axes is slow)
-        cov = np.zeros((n, n), dtype=np.float32)
-        for i in range(k):
-            for j in range(k):
-                cov += fine[i:n * k:k, j:n * k:k]
-        cov *= np.float32(1.0 / (k * k))
-    else:
-        cov = fine[:n, :n]
-    if n != size:
-        from .resample import resize_square
-
-        cov = resize_square(cov, size, anti_aliasing=False)
-    return np.clip(np.rint(composite(cov, board=float(board), thread=float(thread))), 0, 255).astype(np.uint8)
+    img = None if made is None else made(size, board, thread)
+    return img if img is not None else draw_woven(plan, size=size, board=board, thread=thread,
+                                                  samples=PREVIEW_SAMPLES)
 
 
 def preview_png(plan, size, *, board=255, thread=0):
-    """``png_bytes(draw_woven(plan, size=size, ...))``, taken as it is when the polish's twin has
+    """``png_bytes(preview_drawing(plan, size, ...))``, taken as it is when the polish's twin has
     encoded it already (the plan's ``woven_drawings``)."""
     made = getattr(plan, "woven_drawings", None)
     png = getattr(made, "png", None)
     png = None if png is None else png(size, board, thread)
-    return png if png is not None else png_bytes(draw_woven(plan, size=size, board=board, thread=thread))
+    return png if png is not None else png_bytes(preview_drawing(plan, size, board=board, thread=thread))
 
 
 def png_bytes(image):

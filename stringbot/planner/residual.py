@@ -1,41 +1,34 @@
 """The default planner: chords chosen with feedback from the picture as woven.
 
 The picture is a target *darkness* ``t = 1 - gray / 255`` (0 outside the
-frame).  The planner keeps the drawing as woven under the thread model
-(:mod:`stringbot.planner.thread`): ``S``, the summed coverage of the threads
-drawn so far at the working size (a thread ``thread_mm / diameter_mm * size``
-pixels wide, anti-aliased, the same in every direction), and its darkness
-``D = tanh(S)`` (coverage saturates: two threads on one spot are not twice
-as dark; ``tanh`` is what the thread model's fine rendering gives at a coarse
-pixel on average, see docs/planner.md).  The error is
-``E = sum w (t - D)^2`` (``w``: 1 in the frame, up to 2 on important pixels,
-0 outside).
-
-*A chord drawn again* lies on the first thread between the same two pins:
-it covers only what the threads already there leave uncovered *at the
-thread's own scale*, where two threads on one spot are not twice as dark.
-The ``k``-th copy of a chord adds :func:`repeat_gains` ``[k]`` times one
-thread's coverage: the thread model's own cap, measured on a canvas whose
-pixel is the thread's width (1, 0.8, 0.3, 0.18, ... : a second thread beside
-the first still darkens, the tenth hardly at all).  At the working size the
-copies fall on the same pixels, so without this the planner would believe a
-chord drawn 20 times is 20 times as dark and pile thread there.
+frame).  The planner keeps the drawing as woven under the planner's thread
+model (:mod:`stringbot.planner.union`: the reference rendering's union of
+sharp threads on a fine canvas of ``f x f`` samples per working pixel, the
+thread about one sample wide): ``D``, the share of each working pixel the
+threads drawn so far cover.  The error is ``E = sum w (t - D)^2`` (``w``: 1
+in the frame, up to 2 on important pixels, 0 outside).
 
 *Choosing* (image-space error diffusion).  From the current pin, each
 chord's score is the mean, over points spaced evenly along it (``int(hypot)``
-of them, so no direction is favoured), of ``w (t - D) exp(-S)``: how much
-darker the picture wants to be there, times how much darker one more thread
-would still make it (the error's slope).  The chord of highest score is
-drawn, its coverage is added to ``S``, and the error it leaves (or the
-darkness it overshoots) is what the next choices see.  The last
-``min_loop`` pins are not gone back to.
+of them, so no direction is favoured), of
+``w (1 - D) ((t - D) - kappa (1 - D))``: how much darker the picture wants
+to be there, times how much darker one more thread would still make it (it
+falls on the uncovered part, ``1 - D``), less its own second-order cost.
+With ``lines="auto"`` half the score (:data:`EYE_SHARE`) is the same slope of
+the error as the eye sees it (below), on its coarse grid: the piece is judged
+from a step away, where a thread's own stripe does not count.
+The chord of highest score is drawn, and the error it leaves (or the
+darkness it overshoots) is what the next choices see.  A chord drawn again
+lies on the first and adds nothing (its score is 0).  The last ``min_loop``
+pins are not gone back to.
 
-*Stopping* (``lines="auto"``).  Each chord's exact change of ``E`` is
-computed on its own pixels.  A chord that does not lower ``E`` may still
-lead the thread to where the next ones do, so the run goes on until
-``patience`` chords in a row have not brought ``E`` below its lowest, and the
-sequence is cut back to where ``E`` was lowest: another thread would no
-longer improve the picture as woven.
+*Stopping* (``lines="auto"``).  What decides is the error as the eye sees it
+from a step away, the as-woven scorer's (:mod:`stringbot.planner.eye`:
+blurred, on a coarse grid, kept up to date chord by chord).  A chord that
+does not lower it may still lead the thread to where the next ones do, so
+the run goes on until ``patience`` chords in a row have not brought it
+below its lowest, and the sequence is cut back to where it was lowest:
+another thread would no longer improve the piece as it will hang.
 
 The sequence then goes to :mod:`stringbot.planner.refine` (a line count) or
 :mod:`stringbot.planner.polish` (``lines="auto"``).
@@ -47,46 +40,25 @@ import numpy as np
 
 from .greedy import _PinLines
 from .progress import report
-from .thread import SegmentStamp
+from .union import COUNT, UnionStamp, fine_per_pixel, unique
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Canvas", "residual_sequence", "best_start", "repeat_gains", "sum_sparse", "PATIENCE"]
+__all__ = ["Canvas", "residual_sequence", "best_start", "fresh", "sum_sparse", "PATIENCE", "EYE_GRID", "EYE_SHARE"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
 MAX_AUTO = 60_000
-#: copies of one chord whose gain :func:`repeat_gains` measures; later copies gain as the last
-REPEATS = 24
-_GAINS = None
-
-
-def repeat_gains():
-    """Coverage added by the k-th copy of a chord (k = 0, 1, ...), in units of one thread's coverage.
-
-    Measured with the thread model (:mod:`stringbot.planner.thread`) on a
-    canvas whose pixel is as wide as the thread, where the coverage is capped
-    at 1: ``sum min((k + 1) c, 1) - sum min(k c, 1)`` over the footprint ``c``
-    of one thread, divided by ``sum c``, averaged over a few directions.
-
-    Returns
-    -------
-    ndarray of float64, shape (REPEATS,)
-        ``gains[0] == 1``, non-increasing, > 0.
-    """
-    global _GAINS
-    if _GAINS is None:
-        size = 256
-        stamp = SegmentStamp(size, 1.0)
-        k = np.arange(REPEATS + 1, dtype=np.float64)[:, None]
-        curves = []
-        for ang in np.linspace(0.0, np.pi / 4, 7):
-            d = np.array([np.cos(ang), np.sin(ang)]) * 0.45
-            _, c = stamp(0.5 - d, 0.5 + d)
-            curves.append(np.minimum(k * c[None, :], 1.0).sum(axis=1) / c.sum())
-        total = np.mean(curves, axis=0)
-        _GAINS = np.maximum(np.minimum.accumulate(np.diff(total)), 1e-3)
-    return _GAINS
+#: the chooser's fine canvas: samples per working pixel so that the thread is about one sample wide, at most
+#: this many samples a side
+CHOOSER_MAX_FINE = 4096
+#: footprints the chooser keeps (about 20 kB each at 401 px): the chords drawn, and those tried by the refinement
+MAX_CACHED = 8000
+#: side of the coarse grid the chooser measures the error as the eye sees it on (``lines="auto"``)
+EYE_GRID = 128
+#: with ``lines="auto"``, the share of a chord's score that is the slope of the error as the eye sees it
+#: (the rest: the pixel error's); docs/planner.md, "How the chooser scores a chord"
+EYE_SHARE = 0.5
 
 
 def sum_sparse(parts, acc, mark):
@@ -122,86 +94,119 @@ class Canvas:
     pin_xy : ndarray of float, shape (pins, 2)
     width_px : float
         Thread width in pixels at this size.
+    eye : bool
+        Also keep the error as the eye sees it (:attr:`eye`, for ``lines="auto"``).
+
+    Attributes
+    ----------
+    D : ndarray of float64, shape (size * size,)
+        The share of each pixel the threads cover.
+    C : ndarray of uint16, shape (F * F,)
+        How many threads cover each sample of the fine canvas (``F = f size``).
+    uses : ndarray of int32, shape (pins, pins)
+        How many times each chord is drawn (symmetric).
+    eye : EyeError or None
     """
 
-    def __init__(self, target, weights, pin_xy, width_px):
-        self.size = target.shape[0]
+    def __init__(self, target, weights, pin_xy, width_px, *, eye=False):
+        self.size = m = target.shape[0]
         self.t = np.asarray(target, dtype=np.float64).ravel()
         self.w = np.asarray(weights, dtype=np.float64).ravel()
-        self.S = np.zeros_like(self.t)
-        self.D = np.zeros_like(self.t)  # tanh(S), kept in step with S
+        self.D = np.zeros_like(self.t)
         self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
         self.width = float(width_px)
+        self.f = fine_per_pixel(width_px, largest=max(1, CHOOSER_MAX_FINE // m))
+        self.F = m * self.f
+        self._stamp = UnionStamp(m, self.f, width_px)
+        self.C = np.zeros(self.F * self.F, dtype=COUNT)
         self._fp = {}
-        self._stamp = SegmentStamp(self.size, self.width)
         n = len(self.pin_xy)
-        #: how many times each chord is drawn (symmetric); the next copy adds ``gains[uses]`` of a thread
         self.uses = np.zeros((n, n), dtype=np.int32)
-        self.gains = repeat_gains()
-        self._acc = np.zeros_like(self.t)  # scratch: summed coverage change of several chords
-        self._mark = np.zeros(self.t.size, dtype=np.int64)  # scratch: first occurrence of a pixel
+        self._mark = np.zeros(m * m, dtype=np.int64)  # scratch: first occurrence of a pixel
+        self._fmark = None  # the same for the fine canvas's samples
         # a thread's own overlap: half its sum of squared coverage per unit of coverage (measured on a
         # horizontal and a diagonal thread); the second-order cost of its darkness where none is wanted
         kap = []
-        for xy1 in ((0.9, 0.5), (0.9, 0.9)):
-            _, c = self._stamp(np.array([0.1, 0.5 if xy1[1] == 0.5 else 0.1]), np.array(xy1))
+        for xy0, xy1 in (((0.1, 0.5013), (0.9, 0.5007)), ((0.1013, 0.1), (0.9, 0.9011))):
+            c = self._cover(self._stamp(np.array(xy0), np.array(xy1)))[2]
             kap.append(float(np.sum(c * c) / (2.0 * np.sum(c))))
         self.kappa = float(np.mean(kap))
         # how much one more thread's coverage lowers the error, per unit of coverage (see apply)
         self.g = (self.w * (self.t - self.kappa)).astype(np.float32)
+        self.eye = None
+        if eye:
+            self._eye_grid(target, weights)
 
-    def footprint(self, a, b):
-        """``(flat, cover)`` of the chord between pins ``a`` and ``b`` (cached)."""
+    # -- footprints -------------------------------------------------------------------------------------
+
+    def _cover(self, flat):
+        """``(cu, inv, cover)``: the pixels samples ``flat`` fall in (each once; sample ``i`` in
+        ``cu[inv[i]]``) and the share of each they cover."""
+        cu, inv = unique(self._stamp.cells(flat), self._mark)
+        return cu, inv, np.bincount(inv, minlength=len(cu)) * (1.0 / (self.f * self.f))
+
+    def _footprint(self, a, b):
+        """``(flat, cu, inv, cover)`` of chord ``(a, b)``: its samples and :meth:`_cover` of them (cached)."""
         key = (a, b) if a < b else (b, a)
         fp = self._fp.get(key)
         if fp is None:
-            fp = self._fp[key] = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])  # each pixel once
-            if len(self._fp) > 200_000:
+            if len(self._fp) >= MAX_CACHED:
                 self._fp.clear()
+            flat = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])
+            fp = self._fp[key] = (flat,) + self._cover(flat)
         return fp
+
+    def footprint(self, a, b):
+        """``(pix, cover)`` of the chord between pins ``a`` and ``b``: the pixels it covers (each once) and
+        the share of each it covers alone (cached)."""
+        fp = self._footprint(a, b)
+        return fp[1], fp[3]
+
+    # -- the error ---------------------------------------------------------------------------------------
 
     def error(self):
         """``E = sum w (t - D)^2``."""
         return float(np.sum(self.w * (self.t - self.D) ** 2))
 
-    def gain(self, a, b, copies=0):
-        """Share of a thread's coverage the next copy of chord ``(a, b)`` adds (``copies`` more drawn first)."""
-        return float(self.gains[min(max(int(self.uses[a, b]) + copies, 0), len(self.gains) - 1)])
-
-    def gain_row(self, a, others):
-        """:meth:`gain` of the chords from pin ``a`` to each of ``others`` (an array)."""
-        return self.gains[np.minimum(self.uses[a, others], len(self.gains) - 1)]
-
     def _changes(self, chords_out, chords_in):
-        """``[(flat, cover * signed gain), ...]`` of removing then adding chords, copies counted."""
-        more, parts = {}, []
-        for chords, sign in ((chords_out, -1), (chords_in, 1)):
-            for a, b in chords:
-                key = (a, b) if a < b else (b, a)
-                n = more.get(key, 0)
-                if sign < 0:
-                    n -= 1
-                parts.append((self.footprint(a, b), sign * self.gain(a, b, n)))
-                more[key] = more.get(key, 0) + sign
-        return parts
+        """``(flat, new, pix, dD)``: the samples removing then adding chords touches (each once), their
+        counts after, and the change of ``D`` on the pixels ``pix`` (each once); None for no chords.
 
-    def _union(self, parts):
-        """``(pix, dS)``: the pixels several signed footprints touch (each once) and their coverage change."""
-        return sum_sparse([(flat, s * cov) for (flat, cov), s in parts], self._acc, self._mark)
+        A sample changes where its count goes from 0 to more (covered) or back to 0 (uncovered)."""
+        parts = [(self._footprint(a, b), sign) for chords, sign in ((chords_out, -1), (chords_in, 1))
+                 for a, b in chords]
+        if not parts:
+            return None
+        if len(parts) == 1:  # one chord: its pixels are known
+            (flat, cu, inv, _), sign = parts[0]
+            old = self.C[flat]
+            if sign > 0:
+                new, turns = old + 1, old == 0
+            else:
+                new, turns = old - (old > 0), old == 1
+            return flat, new, cu, np.bincount(inv[turns], minlength=len(cu)) * (sign / (self.f * self.f))
+        every = np.concatenate([fp[0] for fp, _ in parts])
+        if self._fmark is None:  # scratch for the samples (allocated the first time several chords change)
+            self._fmark = np.zeros(self.F * self.F, dtype=np.int64)
+        flat, inv = unique(every, self._fmark)
+        d = np.bincount(inv, weights=np.concatenate([np.full(len(fp[0]), s) for fp, s in parts]),
+                        minlength=len(flat)).astype(np.int64)
+        old = self.C[flat].astype(np.int64)
+        new = np.maximum(old + d, 0)
+        turns = (new > 0).astype(np.int8) - (old > 0)
+        hit = turns != 0
+        cu, inv = unique(self._stamp.cells(flat[hit]), self._mark)
+        dD = np.bincount(inv, weights=turns[hit], minlength=len(cu)) * (1.0 / (self.f * self.f))
+        return flat, new.astype(COUNT), cu, dD
 
     def delta(self, chords_out=(), chords_in=()):
         """Exact change of ``E`` if ``chords_out`` were removed and ``chords_in`` added (nothing changes)."""
-        parts = self._changes(chords_out, chords_in)
-        if not parts:
+        ch = self._changes(chords_out, chords_in)
+        if ch is None:
             return 0.0
-        if len(parts) == 1:  # one thread: each pixel once
-            (pix, cov), sign = parts[0]
-            dS = sign * cov
-        else:
-            pix, dS = self._union(parts)
-        S1 = np.maximum(self.S[pix] + dS, 0.0)
-        t, w = self.t[pix], self.w[pix]
-        return float(np.sum(w * ((t - np.tanh(S1)) ** 2 - (t - self.D[pix]) ** 2)))
+        _, _, pix, dD = ch
+        t, w, d0 = self.t[pix], self.w[pix], self.D[pix]
+        return float(np.sum(w * ((t - d0 - dD) ** 2 - (t - d0) ** 2)))
 
     def apply(self, chords_out=(), chords_in=()):
         """Remove ``chords_out`` and add ``chords_in``; update the slope on the pixels they touch.
@@ -211,35 +216,73 @@ class Canvas:
         float
             The exact change of ``E`` (as :meth:`delta` would have said).
         """
-        parts = self._changes(chords_out, chords_in)
-        if not parts:
+        ch = self._changes(chords_out, chords_in)
+        if ch is None:
             return 0.0
         for chords, sign in ((chords_out, -1), (chords_in, 1)):
             for a, b in chords:
                 self.uses[a, b] += sign
                 if a != b:
                     self.uses[b, a] += sign
-        if len(parts) == 1:
-            (pix, cov), sign = parts[0]
-            dS = sign * cov
-        else:
-            pix, dS = self._union(parts)
-        S = np.maximum(self.S[pix] + dS, 0.0)
-        self.S[pix] = S
-        d = np.tanh(S)
-        d0 = self.D[pix]
-        self.D[pix] = d
+        flat, new, pix, dD = ch
+        self.C[flat] = new
+        if not len(pix):
+            return 0.0
         t, w = self.t[pix], self.w[pix]
-        slope = 1.0 - d * d  # dD/dS
-        # E's change for coverage c: -2 w (t - D) D' c + w D'^2 c^2; per unit of coverage of a thread
-        # whose own c^2 / c is 2 kappa: 2 w D' ((t - D) - kappa D')
-        r = t - d
-        self.g[pix] = w * slope * (r - self.kappa * slope)
+        d0 = self.D[pix]
+        d = d0 + dD
+        self.D[pix] = d
+        # E's change for a thread covering c of a pixel, which falls on its uncovered part: it adds
+        # c (1 - D); -2 w (t - D) (1 - D) c + w (1 - D)^2 c^2, per unit of coverage of a thread whose own
+        # c^2 / c is 2 kappa: 2 w (1 - D) ((t - D) - kappa (1 - D))
+        r, left = t - d, 1.0 - d
+        self.g[pix] = w * left * (r - self.kappa * left)
+        if self.eye is not None:
+            self._eye_take(pix, dD)
         return float(np.sum(w * (r * r - (t - d0) ** 2)))
 
     def slope(self):
-        """The slope field ``w (t - D) dD/dS``, flat float32 (a view: do not modify)."""
+        """The slope field ``w (1 - D) ((t - D) - kappa (1 - D))``, flat float32 (a view: do not modify)."""
         return self.g
+
+    # -- the error as the eye sees it (lines="auto") ---------------------------------------------------------
+
+    def _eye_grid(self, target, weights):
+        """The error as the eye sees it on a grid of :data:`EYE_GRID` px at most: each working pixel in one
+        of its cells, the cell the mean of its pixels, blurred by the scorer's sigma (its figure is the
+        scorer's within 0.01 on the peers' plans: docs/planner.md)."""
+        from .eye import EYE_SIGMA, EyeError
+
+        m = self.size
+        me = min(EYE_GRID, m)
+        rc = (np.arange(m) * me) // m
+        self._ecell = (rc[:, None] * me + rc[None, :]).ravel()
+        n = np.bincount(self._ecell, minlength=me * me).astype(np.float64)
+        self._eshare = 1.0 / n[self._ecell]  # a pixel's share of its cell
+        area = np.bincount(self._ecell, weights=self.w, minlength=me * me) / n
+        te = np.bincount(self._ecell, weights=self.w * self.t, minlength=me * me) / np.maximum(area * n, 1e-12)
+        self.eye = eye = EyeError(te.reshape(me, me), area.reshape(me, me), sigma=EYE_SIGMA * me)
+        self._emark = np.zeros(me * me, dtype=np.int64)
+        self._eu = np.zeros(eye.P * eye.P)  # s (1 - D) on the eye's padded grid
+        self._eu[eye.pidx] = eye.s
+        self.eye_slope = self._eu * eye.G  # how much one more thread's coverage lowers the eye's error (/ 2)
+
+    def _eye_take(self, pix, dD):
+        cu, inv = unique(self._ecell[pix], self._emark)
+        eye = self.eye
+        eye.take(cu, np.bincount(inv, weights=dD * self._eshare[pix], minlength=len(cu)))
+        self._eu[eye.pidx[cu]] = eye.s[cu] * (1.0 - eye.D[cu])
+        np.multiply(self._eu, eye.G, out=self.eye_slope)
+
+    def eye_error(self):
+        """The error as the eye sees it (on :attr:`eye`'s grid), or None without it."""
+        return None if self.eye is None else self.eye.error()
+
+
+def fresh(scores, uses):
+    """``scores`` of chords, ``-inf`` for those drawn already (``uses > 0``): a copy lies on the first
+    and adds nothing, so it is never the one to draw."""
+    return np.where(uses > 0, -np.inf, scores)
 
 
 def best_start(canvas, space, pin_lines):
@@ -266,7 +309,9 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     space : ChordSpace
     lines : int or "auto"
         Chords to draw; ``"auto"``: until ``patience`` chords in a row have not
-        brought the error below its lowest, then back to where it was lowest.
+        brought the error below its lowest, then back to where it was lowest
+        (the error as the eye sees it where the canvas keeps it, ``eye=True``;
+        else the pixel error).
     start_pin : int or None
         None: :func:`best_start`.
     min_loop : int
@@ -284,18 +329,34 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     auto = lines == "auto"
     limit = MAX_AUTO if auto else int(lines)
     pins = pin_lines or _PinLines(space, canvas.size, nearest=True)
+    mix = EYE_SHARE if canvas.eye is not None else 0.0
+    if mix:
+        eye_lines = _PinLines(space, canvas.eye.size, nearest=True, spacing=1.0)
+        eye_rows = {}
+        eg = canvas.eye_slope
+        # the pixel slope is a darkness per unit of coverage; the eye's is per unit of coverage of a
+        # cell, blurred twice: the two are put on one scale by their spread over the blank frame
+        escale = float(np.std(canvas.slope())) / max(float(np.std(eg)), 1e-12)
     if start_pin is None:
         start_pin = best_start(canvas, space, pins)
     seq = [int(start_pin)]
     cur = int(start_pin)
     g = canvas.slope()
-    err = best = canvas.error()
+    eye = canvas.eye
+    err = best = canvas.error() if eye is None else eye.error()
     best_len = 1
     for _ in range(limit):
         others, pix, starts, counts = pins.get_with_counts(cur)
         if not len(others):
             break
-        score = np.add.reduceat(g.take(pix), starts) / counts * canvas.gain_row(cur, others)
+        raw = np.add.reduceat(g.take(pix), starts) / counts
+        if mix:
+            row = eye_rows.get(cur)
+            if row is None:
+                eo, ep, es, ec = eye_lines.get_with_counts(cur)
+                row = eye_rows[cur] = (canvas.eye.pidx[ep], es, ec)
+            raw = (1.0 - mix) * raw + mix * escale * (np.add.reduceat(eg.take(row[0]), row[1]) / row[2])
+        score = fresh(raw, canvas.uses[cur, others])
         for q in seq[-min_loop:]:
             k = int(np.searchsorted(others, q))
             if k < len(others) and others[k] == q:
@@ -305,6 +366,8 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
             break
         nxt = int(others[k])
         err += canvas.apply(chords_in=[(cur, nxt)])
+        if eye is not None:
+            err = eye.error()
         if on_chord is not None:
             on_chord((cur, nxt))
         seq.append(nxt)

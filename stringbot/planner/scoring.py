@@ -18,31 +18,36 @@ cropped exactly as the plan was made; outside a circular frame it counts as
 white, as the drawing does.
 
 **The as-woven error** (``woven_error``): what the piece looks like against
-the picture, whatever the planner believed.  The chords are drawn under the
-thread model (:mod:`stringbot.planner.thread`) on a 2048 x 2048 canvas with a
-thread as wide as 1/2048 of the frame (one canvas pixel, about a 0.25 mm
-thread on a 500 mm ring), coverage capped at 1, black thread on a white
-board; the canvas is box-filtered to 512 x 512 and compared with the picture's
-crop read at 512 x 512 (white outside the frame), both Gaussian-blurred with
-sigma 2 pixels: the root-mean-square difference over the pixels of the frame,
-in gray levels of 0..1 (0 perfect; a blank board against a mid-gray picture
-scores 0.5).
+the picture, whatever the planner believed.  The chords are drawn by the
+reference rendering (:mod:`stringbot.planner.reference`: the plan's thread
+at its real width with a sharp edge, the union of the threads, converged,
+box-filtered) at 512 x 512, black thread on a white board, and compared with
+the picture's crop read at 512 x 512 (white outside the frame), both
+Gaussian-blurred with sigma 2 pixels: the root-mean-square difference over
+the pixels of the frame, in gray levels of 0..1 (0 perfect; a blank board
+against a mid-gray picture scores 0.5).
 """
 
 import logging
 
 import numpy as np
 
+#: The neutral yardstick's gray: luminance weighed as ``skimage.color.rgb2gray`` does (Rec. 709 weights on
+#: the sRGB values), the target the peers plan against, and the planner's plain luminance
+from .image import LUMINANCE
+
 log = logging.getLogger(__name__)
 
 __all__ = ["score", "score_chords", "ssim_pair", "woven_error", "woven_drawing", "SCORE_DRAW", "SCORE_SIZE",
-           "BLUR_SIGMA", "WOVEN_CANVAS", "WOVEN_SIZE", "WOVEN_SIGMA", "SSIM_KEYS"]
+           "BLUR_SIGMA", "WOVEN_THREAD", "WOVEN_SIZE", "blurred_rms", "WOVEN_SIGMA", "SSIM_KEYS", "LUMINANCE",
+           "score_picture", "plan_gray"]
 
 SCORE_DRAW = 1001
 SCORE_SIZE = 201
 BLUR_SIGMA = 2.0  # pixels at 201 x 201; the paper does not give its blur
-WOVEN_CANVAS = 2048
 WOVEN_SIZE = 512
+#: the thread's width as a fraction of the frame where a plan does not say (0.25 mm on 500 mm)
+WOVEN_THREAD = 0.25 / 500.0
 WOVEN_SIGMA = 2.0  # pixels at 512 x 512
 #: The four SSIM figures of a score: two windows, plain and blurred.
 SSIM_KEYS = ("ssim", "ssim_blurred", "ssim_uniform", "ssim_uniform_blurred")
@@ -77,36 +82,30 @@ def _framed(gray, frame):
     return np.where(frame_mask(g.shape[0], frame), g, 1.0)
 
 
-def woven_drawing(chords, pin_xy, *, size=WOVEN_SIZE, canvas=WOVEN_CANVAS, width=1.0 / WOVEN_CANVAS):
-    """The chords as woven: black thread on a white board, box-filtered from a fine canvas.
+def woven_drawing(chords, pin_xy, *, size=WOVEN_SIZE, thread_fraction=WOVEN_THREAD):
+    """The chords as woven, black thread on a white board: the reference rendering
+    (:func:`~stringbot.planner.reference.reference_gray`).
 
     Parameters
     ----------
     chords : sequence of (int, int)
     pin_xy : ndarray of float, shape (pins, 2)
     size : int
-        Side of the result; ``canvas`` must be a whole multiple of it.
-    canvas : int
-        Side of the canvas the threads are drawn on.
-    width : float
-        Thread width as a fraction of the frame's diameter.
+        Side of the result.
+    thread_fraction : float
+        Thread width as a fraction of the frame's diameter (a plan's ``thread_mm / diameter_mm``).
 
     Returns
     -------
     ndarray of float64, shape (size, size)
         Gray in [0, 1], 1 white.
     """
-    from .thread import composite, coverage
+    from .reference import reference_gray
 
-    if canvas % size:
-        raise ValueError(f"canvas {canvas} is not a multiple of size {size}")
-    cov = coverage(chords, pin_xy, size=canvas, width_px=width * canvas)
-    f = canvas // size
-    img = composite(cov).astype(np.float64)
-    return img.reshape(size, f, size, f).mean(axis=(1, 3))
+    return reference_gray(chords, pin_xy, size=size, thread_fraction=thread_fraction).astype(np.float64)
 
 
-def woven_error(chords, pin_xy, gray, *, frame):
+def woven_error(chords, pin_xy, gray, *, frame, thread_fraction=WOVEN_THREAD):
     """The as-woven error of chords against a picture (see the module notes).
 
     Parameters
@@ -116,23 +115,30 @@ def woven_error(chords, pin_xy, gray, *, frame):
     gray : ndarray of float, shape (512, 512)
         The picture's crop read at :data:`WOVEN_SIZE`, gray levels 0..255.
     frame : {"circle", "square"}
+    thread_fraction : float
+        Thread width as a fraction of the frame's diameter.
 
     Returns
     -------
     float
         Root-mean-square difference over the frame, gray levels in 0..1.
     """
+    g = np.asarray(gray, dtype=np.float64)
+    if g.shape != (WOVEN_SIZE, WOVEN_SIZE):
+        raise ValueError(f"picture is {g.shape}; expected {WOVEN_SIZE} x {WOVEN_SIZE}")
+    return blurred_rms(woven_drawing(chords, pin_xy, thread_fraction=thread_fraction), _framed(g, frame), frame=frame)
+
+
+def blurred_rms(a, b, *, frame, sigma=WOVEN_SIGMA):
+    """Root-mean-square difference over the frame of two gray images (0..1), both Gaussian-blurred
+    with ``sigma`` pixels (the as-woven error's comparison)."""
     from scipy.ndimage import gaussian_filter
 
     from .fitness import frame_mask
 
-    g = np.asarray(gray, dtype=np.float64)
-    if g.shape != (WOVEN_SIZE, WOVEN_SIZE):
-        raise ValueError(f"picture is {g.shape}; expected {WOVEN_SIZE} x {WOVEN_SIZE}")
-    target = gaussian_filter(_framed(g, frame), WOVEN_SIGMA)
-    drawn = gaussian_filter(woven_drawing(chords, pin_xy), WOVEN_SIGMA)
-    mask = frame_mask(WOVEN_SIZE, frame)
-    return float(np.sqrt(np.mean((drawn - target)[mask] ** 2)))
+    a, b = (gaussian_filter(np.asarray(x, dtype=np.float64), sigma) for x in (a, b))
+    d = a - b
+    return float(np.sqrt(np.mean(d[frame_mask(d.shape[0], frame)] ** 2)))
 
 
 def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA, woven_gray=None):
@@ -152,10 +158,55 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA, woven_gray=None):
         See :func:`score_chords`.
     """
     return score_chords(plan.chord_list(), plan.pin_xy, gray, frame=frame or plan.frame, blur_sigma=blur_sigma,
-                        woven_gray=woven_gray)
+                        woven_gray=woven_gray, thread_fraction=plan.thread_model().fraction)
 
 
-def score_chords(chords, pin_xy, gray, *, frame, blur_sigma=BLUR_SIGMA, woven_gray=None):
+def plan_gray(plan):
+    """``(gray, weights)`` the plan was made against, as :func:`~stringbot.planner.image.read_picture`
+    takes them (``"decolor"`` with no weights where the plan does not say)."""
+    gray = plan.parameters.get("gray_requested", "decolor")
+    weights = plan.parameters.get("gray_weights")
+    if not (isinstance(weights, list) and len(weights) == 3 and all(isinstance(x, (int, float)) for x in weights)):
+        weights = None
+    return (gray if gray in ("decolor", "luminance") else "decolor"), weights
+
+
+def score_picture(plan, image, *, target="luminance"):
+    """Score a plan against a picture file, cropped as the plan says.
+
+    Parameters
+    ----------
+    plan : Plan
+    image : str or Path
+    target : {"luminance", "own"}
+        ``luminance``: the neutral yardstick, the picture's luminance weighed
+        as ``skimage.color.rgb2gray`` does (:data:`LUMINANCE`), what the peers
+        plan against; ``own``: the gray the plan was made against
+        (:func:`plan_gray`: its decolorization's weights, as recorded).
+
+    Returns
+    -------
+    dict
+        :func:`score_chords`'s figures with ``woven_error``, and ``weights``
+        (the colour-to-gray weights used, None for a gray picture) and
+        ``source`` (the picture's ``source`` record: path, sha256, size).
+    """
+    from .image import read_picture
+
+    if target == "luminance":
+        gray, weights = "luminance", LUMINANCE
+    elif target == "own":
+        gray, weights = plan_gray(plan)
+    else:
+        raise ValueError(f"target {target!r}; expected 'luminance' or 'own'")
+    pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, weights=weights, gray=gray)
+    woven = read_picture(image, size=WOVEN_SIZE, crop=plan.crop, weights=pic.weights, gray=gray)
+    out = score(plan, pic.gray, woven_gray=woven.gray)
+    out.update(weights=pic.weights, source=pic.source)
+    return out
+
+
+def score_chords(chords, pin_xy, gray, *, frame, blur_sigma=BLUR_SIGMA, woven_gray=None, thread_fraction=WOVEN_THREAD):
     """The paper's SSIM of chords drawn on pins against a picture, and optionally the as-woven error.
 
     Parameters
@@ -171,6 +222,8 @@ def score_chords(chords, pin_xy, gray, *, frame, blur_sigma=BLUR_SIGMA, woven_gr
         Gaussian sigma, in pixels at 201 x 201, of the blurred comparison.
     woven_gray : ndarray of float, shape (512, 512), optional
         The picture's crop read at 512 x 512: also compute ``woven_error``.
+    thread_fraction : float
+        The thread's width as a fraction of the frame (for ``woven_error``).
 
     Returns
     -------
@@ -188,5 +241,5 @@ def score_chords(chords, pin_xy, gray, *, frame, blur_sigma=BLUR_SIGMA, woven_gr
     out = ssim_pair(a, b, blur_sigma=blur_sigma)
     out["lines"] = len(chords)
     if woven_gray is not None:
-        out["woven_error"] = woven_error(chords, pin_xy, woven_gray, frame=frame)
+        out["woven_error"] = woven_error(chords, pin_xy, woven_gray, frame=frame, thread_fraction=thread_fraction)
     return out

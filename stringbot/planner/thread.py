@@ -1,4 +1,11 @@
-"""The thread model: how a set of real threads darkens a board, in real units.
+"""The blurred thread model: how a set of real threads darkens a board, in real units.
+
+(The piece as it will hang is drawn by :mod:`stringbot.planner.reference`, the
+union of sharp threads; the one-thread planner keeps that union too,
+:mod:`stringbot.planner.union`.  This module's anti-aliased footprints serve
+the colour planner, which combines them as opaque threads, and
+:class:`ThreadModel` -- the frame and the thread, in millimetres -- serves
+all.)
 
 A thread painting is threads of width ``thread_mm`` stretched between pins on a
 frame of diameter ``diameter_mm``.  Drawn on a ``size x size`` canvas that

@@ -142,12 +142,12 @@ def buffers(canvas, block):
     footprints."""
     import mmap
 
-    chord = 2 * (canvas.F + 2) * len(canvas._stamp.offsets)  # fine pixels of a chord, at most (with room)
-    size = 8 * canvas.P * canvas.P + 4 * chord * (8 + 4 + 4 + 4)
+    chord = canvas.max_samples + 64  # fine pixels of a chord, at most (with room)
+    size = 8 * canvas.P * canvas.P + 4 * chord * (8 + 4 + 2 + 4) + 64
     return [[mmap.mmap(-1, size) for _ in range(block)] for _side in range(2)]
 
 
-_LAYOUT = (np.float64, np.float64, np.int32, np.float32, np.int32)  # G, d, flat, sf, cu
+_LAYOUT = (np.float64, np.float64, np.int32, np.uint16, np.int32)  # G, d, flat, sf (counts), cu
 
 
 def _pack(buf, change):
@@ -157,7 +157,7 @@ def _pack(buf, change):
     for arr, dtype in zip((G, d, flat, sf, cu), _LAYOUT):
         view = np.frombuffer(buf, dtype=dtype, count=len(arr), offset=at)
         view[:] = arr
-        at += view.nbytes
+        at = (at + view.nbytes + 7) & ~7  # each array on 8 bytes
     return len(G), len(cu), len(flat), float(E)
 
 
@@ -167,14 +167,15 @@ def _unpack(buf, sizes):
     for n, dtype in zip((nG, nc, nf, nf, nc), _LAYOUT):
         view = np.frombuffer(buf, dtype=dtype, count=n, offset=at)
         out.append(view)
-        at += view.nbytes
+        at = (at + view.nbytes + 7) & ~7  # each array on 8 bytes
     G, d, flat, sf, cu = out
     return (flat, sf, cu, d), G, E
 
 
 def twin(canvas, seq, order, pin_lines, *, after=None):
     """Fork a twin that polishes every other block of pins with :func:`~stringbot.planner.polish.polish_pins`
-    (then calls ``after(canvas)``, the drawing polished, and ends); returns this side's :class:`Partner`."""
+    (then calls ``after(canvas, seq)``, the drawing and the sequence polished, and ends); returns this side's
+    :class:`Partner`."""
     from multiprocessing.connection import Pipe
 
     from .polish import BLOCK, polish_pins
@@ -187,7 +188,7 @@ def twin(canvas, seq, order, pin_lines, *, after=None):
         polish_pins(canvas, seq, order, pin_lines, partner=Partner(there, 1, shared))
         there.close()
         if after is not None:
-            after(canvas)
+            after(canvas, seq)
 
     pid = _fork(body)
     there.close()
@@ -199,7 +200,8 @@ class TwinDrawing:
 
     Made in the planner's process before the helper is forked (a shared
     buffer and a pipe the twin says "done" on); called as a plan's
-    ``woven_drawings(size, board, thread)``: the drawing (uint8, ``size`` px,
+    ``woven_drawings(size, board, thread)``: the preview
+    (:func:`~stringbot.planner.render.preview_drawing`: uint8, ``size`` px,
     black thread on white) once the twin has made it, or None (another size,
     or the twin failed: the caller draws it); :meth:`png` the same as PNG
     bytes, which the twin encodes too.
@@ -222,18 +224,18 @@ class TwinDrawing:
         self._img = self._png = None
         self._pid = None
 
-    def make(self, canvas):  # pragma: no cover - runs in the twin
-        """Draw the canvas's coverage (the twin's, the same as the helper's) and say so."""
-        from .render import fine_side, png_bytes, woven_drawing
+    def make(self, canvas, seq):  # pragma: no cover - runs in the twin
+        """Draw the polished sequence ``seq`` (the twin's, the same as the helper's) and say so."""
+        from .render import PREVIEW_SAMPLES, png_bytes, woven_image
 
-        if fine_side(self.model, self.size) == canvas.F:
-            img = woven_drawing(np.minimum(canvas.Sf, 1.0).reshape(canvas.F, canvas.F), self.size)
-            self._buf[:] = img.tobytes()
-            png = png_bytes(img)
-            fits = len(png) <= len(self._png_buf)
-            if fits:
-                self._png_buf[:len(png)] = png
-            self._say.send_bytes(str(len(png) if fits else 0).encode())
+        img = woven_image(list(zip(seq[:-1], seq[1:])), canvas.pin_xy, size=self.size,
+                          thread_fraction=self.model.fraction, samples=PREVIEW_SAMPLES)
+        self._buf[:] = img.tobytes()
+        png = png_bytes(img)
+        fits = len(png) <= len(self._png_buf)
+        if fits:
+            self._png_buf[:len(png)] = png
+        self._say.send_bytes(str(len(png) if fits else 0).encode())
         self._say.close()
 
     def sent(self):
@@ -335,7 +337,7 @@ class WovenHelper:
 
         Returns
         -------
-        (seq, stats, cover) as :func:`~stringbot.planner.polish.polish_plan`, or None when the helper failed.
+        (seq, stats) as :func:`~stringbot.planner.polish.polish_plan`, or None when the helper failed.
         """
         self._flush()
         self._send(("polish", [int(p) for p in seq], int(budget), time.perf_counter()))
@@ -344,11 +346,8 @@ class WovenHelper:
             if not self.failed:
                 msg = self._conn.recv()
                 if msg[0] == "done":
-                    _, seq1, stats, shape = msg
-                    cover = None
-                    if shape is not None:
-                        cover = np.frombuffer(self._conn.recv_bytes(), dtype=np.float32).reshape(shape)
-                    out = seq1, stats, cover
+                    _, seq1, stats = msg
+                    out = seq1, stats
         except (EOFError, OSError):
             pass
         finally:
@@ -432,17 +431,14 @@ def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs i
                 return mate
 
             try:
-                seq, stats, cover = polish_plan(canvas, seq, space, budget=budget, partner=partner,
-                                                cover=drawing is None)  # else the twin draws the preview
+                seq, stats = polish_plan(canvas, seq, space, budget=budget, partner=partner)
             except BaseException:
                 for pid in twins:  # gone or going (an interrupt reaches the twin too)
                     os.waitpid(pid, 0)
                 raise
             stats = dict(stats, behind_seconds=round(t - sent, 3), canvas_seconds=round(t1 - t, 3),
                          pins_seconds=round(time.perf_counter() - t1, 3), drawn_early=drawn)
-            conn.send(("done", seq, stats, None if cover is None else cover.shape))
-            if cover is not None:
-                conn.send_bytes(np.ascontiguousarray(cover, dtype=np.float32).data)
+            conn.send(("done", seq, stats))
             for pid in twins:
                 os.waitpid(pid, 0)
             return
