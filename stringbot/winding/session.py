@@ -182,14 +182,17 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
     """
     op = operator if operator is not None else Operator(confirm=confirm, look=eyes)
     _refuse_unfinished(job)
-    journal = link = None
+    # with no journal at the path, the start is recorded at once (a refusal then shows in --status);
+    # over an earlier winding's journal, only once the machine is there and agrees: a port that does
+    # not open or a machine that disagrees leaves that journal as it was
+    journal = None if job.journal_path.exists() else _new_journal(job)
+    link = None
     try:
         link = open_link(job.url, job.machine, **(link_options or {}))
         if check:
             require_agreement(link, job.machine)
-        # the journal is written once the machine is there and agrees: a port that does not open or
-        # a machine that disagrees leaves the journal of an earlier winding as it was
-        journal = _new_journal(job)
+        if journal is None:
+            journal = _new_journal(job)
         winder = Winder(link, job.steps, job.machine, journal=journal, progress=progress,
                         confirm=confirm)
         home = job.machine["controller.homing"] or bool(job.machine.values.get("controller.head_homing"))
