@@ -198,3 +198,13 @@ def test_a_start_that_cannot_begin_leaves_the_last_journal_as_it_was(tmp_path, p
     assert code == expected, err
     assert "Traceback" not in err
     assert journal.read_bytes() == before
+
+
+def test_a_port_that_does_not_open_writes_no_journal(tmp_path, plan_path, capsys):
+    """Nothing began, so nothing is recorded: no bare start left behind for `--status` or `plan -o`
+    to read as a winding (a refused settings check, which did talk to the machine, is recorded)."""
+    journal = tmp_path / "plan.journal"
+    code, _, err = run(["wind", str(plan_path), "--machine", "grbl-ring", "--yes", "--journal", str(journal),
+                        "--port", "rfc2217://127.0.0.1:1"], capsys)
+    assert code == 2 and "Traceback" not in err, err
+    assert not journal.exists()

@@ -182,13 +182,14 @@ def wind_plan(job, *, confirm=None, progress=None, link_options=None, check=Fals
     """
     op = operator if operator is not None else Operator(confirm=confirm, look=eyes)
     _refuse_unfinished(job)
-    # with no journal at the path, the start is recorded at once (a refusal then shows in --status);
-    # over an earlier winding's journal, only once the machine is there and agrees: a port that does
-    # not open or a machine that disagrees leaves that journal as it was
-    journal = None if job.journal_path.exists() else _new_journal(job)
-    link = None
+    # the start is recorded once the port is open; over an earlier winding's journal only once the
+    # machine agrees too (a machine that disagrees leaves that journal as it was; with no journal
+    # there, its refusal shows in --status)
+    journal = link = None
     try:
         link = open_link(job.url, job.machine, **(link_options or {}))
+        if not job.journal_path.exists():
+            journal = _new_journal(job)
         if check:
             require_agreement(link, job.machine)
         if journal is None:
