@@ -1,7 +1,7 @@
 """Scoring a plan against its picture: the paper's SSIM and the as-woven error.
 
 **The paper's SSIM** (section 4.1).  The chords are drawn as black 1-pixel
-lines on white at 1001 x 1001 (:func:`stringbot.planner.render.draw`); that
+lines on white at 1001 x 1001 (:func:`stringbot.planner.model.render.draw`); that
 drawing and the picture's crop are both resized to 201 x 201 and compared by
 SSIM; then again after a Gaussian blur of both (sigma 2 pixels at 201 x 201;
 the paper does not give its blur).  Tools and papers compute SSIM with one of
@@ -19,7 +19,7 @@ white, as the drawing does.
 
 **The as-woven error** (``woven_error``): what the piece looks like against
 the picture, whatever the planner believed.  The chords are drawn by the
-reference rendering (:mod:`stringbot.planner.reference`: the plan's thread
+reference rendering (:mod:`stringbot.planner.model.reference`: the plan's thread
 at its real width with a sharp edge, the union of the threads, converged,
 box-filtered) at 512 x 512, black thread on a white board, and compared with
 the picture's crop read at 512 x 512 (white outside the frame), both
@@ -34,7 +34,7 @@ import numpy as np
 
 #: The neutral yardstick's gray: luminance weighed as ``skimage.color.rgb2gray`` does (Rec. 709 weights on
 #: the sRGB values), the target the peers plan against, and the planner's plain luminance
-from .image import LUMINANCE
+from ..picture.read import LUMINANCE
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +76,7 @@ def ssim_pair(a, b, *, blur_sigma=BLUR_SIGMA):
 
 def _framed(gray, frame):
     """A picture's crop in [0, 1], white outside a circular frame."""
-    from .fitness import frame_mask
+    from ..methods.fitness import frame_mask
 
     g = np.asarray(gray, dtype=np.float64) / 255.0
     return np.where(frame_mask(g.shape[0], frame), g, 1.0)
@@ -84,7 +84,7 @@ def _framed(gray, frame):
 
 def woven_drawing(chords, pin_xy, *, size=WOVEN_SIZE, thread_fraction=WOVEN_THREAD):
     """The chords as woven, black thread on a white board: the reference rendering
-    (:func:`~stringbot.planner.reference.reference_gray`).
+    (:func:`~stringbot.planner.model.reference.reference_gray`).
 
     Parameters
     ----------
@@ -134,7 +134,7 @@ def blurred_rms(a, b, *, frame, sigma=WOVEN_SIGMA):
     with ``sigma`` pixels (the as-woven error's comparison)."""
     from scipy.ndimage import gaussian_filter
 
-    from .fitness import frame_mask
+    from ..methods.fitness import frame_mask
 
     a, b = (gaussian_filter(np.asarray(x, dtype=np.float64), sigma) for x in (a, b))
     d = a - b
@@ -162,7 +162,7 @@ def score(plan, gray, *, frame=None, blur_sigma=BLUR_SIGMA, woven_gray=None):
 
 
 def plan_gray(plan):
-    """``(gray, weights)`` the plan was made against, as :func:`~stringbot.planner.image.read_picture`
+    """``(gray, weights)`` the plan was made against, as :func:`~stringbot.planner.picture.read.read_picture`
     takes them (``"decolor"`` with no weights where the plan does not say)."""
     gray = plan.parameters.get("gray_requested", "decolor")
     weights = plan.parameters.get("gray_weights")
@@ -191,7 +191,7 @@ def score_picture(plan, image, *, target="luminance"):
         (the colour-to-gray weights used, None for a gray picture) and
         ``source`` (the picture's ``source`` record: path, sha256, size).
     """
-    from .image import read_picture
+    from ..picture.read import read_picture
 
     if target == "luminance":
         gray, weights = "luminance", LUMINANCE

@@ -71,7 +71,7 @@ def edge_consistency(space, rowptr, chords, gy, gx):
     ----------
     space : ChordSpace
     rowptr, chords : ndarray
-        Pixel-major incidence (:func:`stringbot.planner.chords.pixel_chords`).
+        Pixel-major incidence (:func:`stringbot.planner.model.chords.pixel_chords`).
     gy, gx : ndarray of float, shape (size, size)
 
     Returns

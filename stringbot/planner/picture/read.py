@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import sha256_file  # noqa: F401  (the picture's identity in the plan; imported from here too)
-from ..errors import BadInput
+from ..._files import sha256_file  # noqa: F401  (the picture's identity in the plan; imported from here too)
+from ...errors import BadInput
 
 log = logging.getLogger(__name__)
 
@@ -35,7 +35,7 @@ __all__ = ["Picture", "read_picture", "decolorize", "default_crop", "default_cro
            "MAX_PIXELS", "LUMINANCE", "CV2_LUMINANCE"]
 
 #: plain luminance: ``skimage.color.rgb2gray``'s weights (Rec. 709) on the sRGB values, what the scorer
-#: compares with (:mod:`stringbot.planner.scoring`)
+#: compares with (:mod:`stringbot.planner.model.scoring`)
 LUMINANCE = (0.2125, 0.7154, 0.0721)
 #: OpenCV's ``COLOR_BGR2GRAY`` (Rec. 601), ThreadTone's
 CV2_LUMINANCE = (0.299, 0.587, 0.114)

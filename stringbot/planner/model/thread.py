@@ -1,8 +1,8 @@
 """The blurred thread model: how a set of real threads darkens a board, in real units.
 
-(The piece as it will hang is drawn by :mod:`stringbot.planner.reference`, the
+(The piece as it will hang is drawn by :mod:`stringbot.planner.model.reference`, the
 union of sharp threads; the one-thread planner keeps that union too,
-:mod:`stringbot.planner.union`.  This module's anti-aliased footprints serve
+:mod:`stringbot.planner.model.union`.  This module's anti-aliased footprints serve
 the colour planner, which combines them as opaque threads, and
 :class:`ThreadModel` -- the frame and the thread, in millimetres -- serves
 all.)
@@ -37,7 +37,7 @@ way), so its centre is at ``((c + 0.5) / size, (r + 0.5) / size)``.
 
 Typical use::
 
-    from stringbot.planner.thread import ThreadModel, coverage, composite
+    from stringbot.planner.model.thread import ThreadModel, coverage, composite
     model = ThreadModel(diameter_mm=500, thread_mm=0.25)
     cov = coverage(plan.chord_list(), plan.pin_xy, size=1001, width_px=model.width_px(1001))
     gray = composite(cov, board=1.0, thread=0.0)          # as woven, black thread on white
