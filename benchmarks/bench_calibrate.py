@@ -29,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from calibration_photos import camera, render_photo  # noqa: E402
 from firmware_protocol.machine import load_machine  # noqa: E402
-from stringbot.planner.calibration import design_sheet  # noqa: E402
+from stringbot.planner.calibration.sheet import design_sheet  # noqa: E402
 
 SHAPE = (1800, 2400)
 #: (width mm, camera, light, extras): camera = (tilt lr, tilt tb, turn deg), light = (gradient, direction, vignette).

@@ -5,13 +5,13 @@ For every plan (stringbot's default plan of each test picture, as
 plans in ``../shared/reference/peers``: ThreadTone, giunta, Prem-Dharshan),
 the chords are drawn
 
-* by the reference rendering (:mod:`stringbot.planner.reference`, converged)
+* by the reference rendering (:mod:`stringbot.planner.model.reference`, converged)
   at 512 px: the truth;
 * by each of the planner's models, as the planner would hold that plan:
   the chooser's canvas at the working size (401 px, :class:`Canvas
-  <stringbot.planner.residual.Canvas>`), its coarse grid of the error as the
+  <stringbot.planner.methods.residual.Canvas>`), its coarse grid of the error as the
   eye sees it (``--lines auto`` stops by it), and the polish's canvas
-  (:class:`WovenCanvas <stringbot.planner.woven.WovenCanvas>`, 256 px, its
+  (:class:`WovenCanvas <stringbot.planner.methods.woven.WovenCanvas>`, 256 px, its
   fine canvas 2048 samples a side).
 
 Printed per plan and model: ``mean`` the model's mean gray minus the
@@ -42,7 +42,7 @@ WORKING = 401
 
 
 def _resized(img, size=512):
-    from stringbot.planner.resample import resize_square
+    from stringbot.planner.picture.resample import resize_square
 
     img = np.asarray(img, dtype=np.float64)
     return img if img.shape[0] == size else resize_square(img, size, anti_aliasing=img.shape[0] > size)
@@ -64,11 +64,11 @@ def compare(model_gray, ref_gray, target, mask):
 def models(plan, image):
     """Each model's drawing of the plan (gray, 1 white) and its own as-woven error figure (or None)."""
     from stringbot.planner.build import _woven_canvas
-    from stringbot.planner.chords import chord_space
-    from stringbot.planner.fitness import frame_mask
-    from stringbot.planner.image import read_picture
-    from stringbot.planner.residual import Canvas
-    from stringbot.planner.scoring import LUMINANCE
+    from stringbot.planner.model.chords import chord_space
+    from stringbot.planner.methods.fitness import frame_mask
+    from stringbot.planner.picture.read import read_picture
+    from stringbot.planner.methods.residual import Canvas
+    from stringbot.planner.model.scoring import LUMINANCE
 
     chords = plan.chord_list()
     model = plan.thread_model()
@@ -128,10 +128,10 @@ def main():
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from quality_table import peer_plan
 
-    from stringbot.planner.fitness import frame_mask
-    from stringbot.planner.image import read_picture
-    from stringbot.planner.reference import reference_gray
-    from stringbot.planner.scoring import LUMINANCE, WOVEN_SIZE
+    from stringbot.planner.methods.fitness import frame_mask
+    from stringbot.planner.picture.read import read_picture
+    from stringbot.planner.model.reference import reference_gray
+    from stringbot.planner.model.scoring import LUMINANCE, WOVEN_SIZE
 
     images = Path(opts.images)
     names = sorted(p.stem for p in images.iterdir() if p.suffix.lower() == ".png")
@@ -156,7 +156,7 @@ def main():
                 mean, rms, err = compare(drawing, ref, target, mask)
                 row[kind] = {"mean": round(mean, 4), "rms": round(rms, 4), "err": round(err, 4)}
                 if own is not None:  # the model's own figure (its grid, its blur) against the reference's
-                    from stringbot.planner.scoring import blurred_rms
+                    from stringbot.planner.model.scoring import blurred_rms
 
                     row[kind]["own_err"] = round(own - blurred_rms(ref, target, frame="circle"), 4)
                 w = worst.setdefault(kind, {"mean": 0.0, "rms": 0.0, "err": 0.0})

@@ -52,7 +52,7 @@ def peer_plan(path):
 
 def score_plan(plan, image):
     """Score a plan against its picture as `stringbot score` does: its own crop, the picture's luminance."""
-    from stringbot.planner.scoring import score_picture
+    from stringbot.planner.model.scoring import score_picture
 
     return score_picture(plan, image, target="luminance")
 
@@ -67,16 +67,16 @@ def short_share(plan, fraction=30):
 def sheet_tile(plan, side):
     from skimage.transform import resize
 
-    from stringbot.planner.scoring import woven_drawing
+    from stringbot.planner.model.scoring import woven_drawing
 
     return resize(woven_drawing(plan.chord_list(), plan.pin_xy, thread_fraction=plan.thread_model().fraction),
                   (side, side), anti_aliasing=True)
 
 
 def source_tile(image, crop, side):
-    from stringbot.planner.fitness import frame_mask
-    from stringbot.planner.image import read_picture
-    from stringbot.planner.scoring import LUMINANCE
+    from stringbot.planner.methods.fitness import frame_mask
+    from stringbot.planner.picture.read import read_picture
+    from stringbot.planner.model.scoring import LUMINANCE
 
     g = read_picture(image, size=side, crop=crop, gray="luminance", weights=LUMINANCE).gray / 255.0
     return np.where(frame_mask(side, "circle"), g, 1.0)
@@ -141,7 +141,7 @@ def main():
     ap.add_argument("--json", action="store_true")
     opts = ap.parse_args()
 
-    from stringbot.planner.image import read_picture
+    from stringbot.planner.picture.read import read_picture
 
     methods = [m for m in opts.methods.split(",") if m]
     paths = sorted(p for p in Path(opts.images).iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from stringbot.planner.image import Picture
+from stringbot.planner.picture.read import Picture
 
 
 def picture(gray):

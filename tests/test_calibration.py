@@ -16,8 +16,8 @@ import pytest
 from PIL import Image
 
 from stringbot.errors import BadInput
-from stringbot.planner.calibration import cell_coverage, design_sheet, sheet_from_plan, sheet_plan
-from stringbot.planner.calibration_fit import fit_photo, find_sheet, read_photo
+from stringbot.planner.calibration.sheet import cell_coverage, design_sheet, sheet_from_plan, sheet_plan
+from stringbot.planner.calibration.photo import fit_photo, find_sheet, read_photo
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from calibration_photos import camera, render_photo  # noqa: E402

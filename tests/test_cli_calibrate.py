@@ -13,7 +13,7 @@ from PIL import Image
 
 from firmware_protocol.machine import bundled_dir, load_machine
 from stringbot.planner import read_plan
-from stringbot.planner.calibration import design_sheet
+from stringbot.planner.calibration.sheet import design_sheet
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))

@@ -17,9 +17,9 @@ from stringbot.motion.layers import layer_estimates
 from stringbot.planner import Plan, read_plan, write_plan
 from stringbot.planner.colour_build import plan_colour
 from stringbot.planner.colour_render import colour_score, plan_layers
-from stringbot.planner.image import read_picture
+from stringbot.planner.picture.read import read_picture
 from stringbot.planner.palette import auto_palette, parse_background, parse_color, parse_colors, threads
-from stringbot.planner.thread import ThreadModel
+from stringbot.planner.model.thread import ThreadModel
 
 
 def ring_xy(pins):

@@ -196,7 +196,7 @@ def test_a_dark_but_plannable_picture_is_planned(tmp_path):
 
 def test_the_line_cap_is_reported(tmp_path, picture):  # noqa: F811
     """The cap is 60000 lines (a minute's planning): this process lowers it to 60."""
-    code = "import stringbot.planner.residual as r; r.MAX_AUTO = 60; from stringbot.cli import main; main()"
+    code = "import stringbot.planner.methods.residual as r; r.MAX_AUTO = 60; from stringbot.cli import main; main()"
     p = subprocess.run([sys.executable, "-c", code, "plan", str(picture), "-o", "cap.json", *SMALL,
                         "--polish", "0"], capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert p.returncode == 0, p.stderr

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from stringbot.planner.chords import pin_positions
+from stringbot.planner.model.chords import pin_positions
 from stringbot.planner.plan_file import Plan, write_plan
 from test_cli_plan import one_error_line, run
 from test_gcode_replay import make_plan, random_sequence

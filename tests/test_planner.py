@@ -8,13 +8,13 @@ import pytest
 
 from stringbot.errors import BadInput
 from stringbot.planner.build import auto_lines, plan_picture, thread_length
-from stringbot.planner.chords import (chord_pixels, chord_space, line_pixels, pin_positions,
+from stringbot.planner.model.chords import (chord_pixels, chord_space, line_pixels, pin_positions,
                                       pixel_chords)
-from stringbot.planner.fitness import frame_mask, solve_fitness
-from stringbot.planner.greedy import greedy_sequence
-from stringbot.planner.render import draw
-from stringbot.planner.scoring import score
-from stringbot.planner.sampling import _Diffuser, fitness_table, sample_connected, sample_disconnected
+from stringbot.planner.methods.fitness import frame_mask, solve_fitness
+from stringbot.planner.methods.greedy import greedy_sequence
+from stringbot.planner.model.render import draw
+from stringbot.planner.model.scoring import score
+from stringbot.planner.methods.sampling import _Diffuser, fitness_table, sample_connected, sample_disconnected
 
 from planner_helpers import picture
 
@@ -380,7 +380,7 @@ def test_render_draws_each_chord_black_on_white():
 
 
 def test_edge_term_suppresses_chords_that_cross_edges():
-    from stringbot.planner.fitness import edge_consistency, gradients
+    from stringbot.planner.methods.fitness import edge_consistency, gradients
 
     size, P = 101, 40
     g = np.full((size, size), 255.0)
@@ -460,7 +460,7 @@ def test_greedy_is_threadtones_loop():
 
 
 def test_threadtone_line_sums_are_isotropic_and_its_band_is_perpendicular():
-    from stringbot.planner.greedy import band_pixels, cv_half_width, line_samples
+    from stringbot.planner.methods.greedy import band_pixels, cv_half_width, line_samples
     size = 201
     starts, flat = line_samples(10, 10, np.array([10, 190]), np.array([190, 190]), size)
     n = np.diff(np.append(starts, len(flat)))

@@ -8,7 +8,7 @@ import pytest
 from PIL import Image
 
 from stringbot.errors import BadInput
-from stringbot.planner.image import decolorize, parse_crop, read_mask, read_picture
+from stringbot.planner.picture.read import decolorize, parse_crop, read_mask, read_picture
 
 
 def gradient_rgb(n=64):

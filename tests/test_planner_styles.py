@@ -9,8 +9,8 @@ import pytest
 
 from stringbot.errors import BadInput
 from stringbot.planner.build import DEFAULTS, FILL, plan_picture, style_candidates
-from stringbot.planner.render import draw
-from stringbot.planner.scoring import score
+from stringbot.planner.model.render import draw
+from stringbot.planner.model.scoring import score
 
 from planner_helpers import picture
 

@@ -10,14 +10,14 @@ import pytest
 from scipy.ndimage import correlate, gaussian_filter
 
 from stringbot.planner.build import plan_picture
-from stringbot.planner.chords import chord_space
-from stringbot.planner.fitness import frame_mask
-from stringbot.planner.greedy import _PinLines
-from stringbot.planner.polish import polish_plan
-from stringbot.planner.resample import resize_square
-from stringbot.planner.scoring import woven_error
-from stringbot.planner.reference import reference_coverage
-from stringbot.planner.woven import WovenCanvas
+from stringbot.planner.model.chords import chord_space
+from stringbot.planner.methods.fitness import frame_mask
+from stringbot.planner.methods.greedy import _PinLines
+from stringbot.planner.methods.polish import polish_plan
+from stringbot.planner.picture.resample import resize_square
+from stringbot.planner.model.scoring import woven_error
+from stringbot.planner.model.reference import reference_coverage
+from stringbot.planner.methods.woven import WovenCanvas
 
 from planner_helpers import picture
 

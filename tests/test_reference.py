@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from stringbot.planner import reference
-from stringbot.planner.chords import pin_positions
-from stringbot.planner.reference import fine_factor, reference_coverage, reference_gray
+from stringbot.planner.model import reference
+from stringbot.planner.model.chords import pin_positions
+from stringbot.planner.model.reference import fine_factor, reference_coverage, reference_gray
 
 
 def _brute(chords, xy, size, fraction, k):
@@ -100,7 +100,7 @@ def test_the_gray_is_the_board_showing_through():
 
 def test_the_preview_is_the_reference_with_fewer_samples_and_the_same_mean():
     from stringbot.planner import Plan
-    from stringbot.planner.render import PREVIEW_SAMPLES, draw_woven, preview_drawing
+    from stringbot.planner.model.render import PREVIEW_SAMPLES, draw_woven, preview_drawing
 
     chords, xy = _random_plan(120, 400, seed=3)
     seq = [chords[0][0]] + [b for _, b in chords]

@@ -1,6 +1,6 @@
 """Each kind of thing is named in one place, and the help, the docs and the runs follow it.
 
-The planner's methods (``stringbot/planner/methods.py``) and the simulator's fault kinds
+The planner's methods (``stringbot/planner/methods/__init__.py``) and the simulator's fault kinds
 (``firmware_protocol/faults.py``; the Dynamixel bus's own in its emulator) are registries:
 these tests fail when ``--help`` or a docs table leaves a kind out or names one that is not
 there, and run every method through ``stringbot plan`` as a user does.

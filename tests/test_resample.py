@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from skimage.transform import resize
 
-from stringbot.planner.resample import resize_square
+from stringbot.planner.picture.resample import resize_square
 
 
 @pytest.mark.parametrize("n, m, anti_aliasing", [(401, 256, True), (801, 256, True), (1024, 1001, False),

@@ -5,12 +5,12 @@ import pytest
 
 from stringbot.errors import BadInput
 from stringbot.planner.build import plan_picture
-from stringbot.planner.chords import chord_space
-from stringbot.planner.fitness import frame_mask
-from stringbot.planner.greedy import _PinLines
-from stringbot.planner.refine import refine_sequence
-from stringbot.planner.residual import Canvas, residual_sequence
-from stringbot.planner.scoring import woven_error
+from stringbot.planner.model.chords import chord_space
+from stringbot.planner.methods.fitness import frame_mask
+from stringbot.planner.methods.greedy import _PinLines
+from stringbot.planner.methods.refine import refine_sequence
+from stringbot.planner.methods.residual import Canvas, residual_sequence
+from stringbot.planner.model.scoring import woven_error
 
 from planner_helpers import picture
 
@@ -47,7 +47,7 @@ def test_residual_draws_where_the_picture_is_dark_and_stops_by_itself():
     D = canvas.D.reshape(g.shape)
     assert D[g < 50].mean() > 3 * D[g > 250].mean()
     # the drawing is the reference rendering's union of the threads, sampled f x f a pixel
-    from stringbot.planner.reference import reference_coverage
+    from stringbot.planner.model.reference import reference_coverage
 
     ref = reference_coverage(list(zip(seq[:-1], seq[1:])), space.pin_xy, size=g.shape[0],
                              thread_fraction=0.2 / g.shape[0], factor=canvas.f)
@@ -112,7 +112,7 @@ def test_importance_mask_weighs_the_error(tmp_path):
     weighted = plan_picture(src, pins=80, size=size, lines=120, importance=mask)
 
     def left_share(plan):
-        from stringbot.planner.thread import coverage
+        from stringbot.planner.model.thread import coverage
         c = coverage(plan.chord_list(), plan.pin_xy, size=size, width_px=1.0, saturated=False)
         return c[30:70, 15:45].sum() / (c[30:70, 15:45].sum() + c[30:70, 56:86].sum())
 
@@ -131,7 +131,7 @@ def test_fit_letterboxes_the_whole_picture(tmp_path):
     fit = plan_picture(src, pins=80, size=101, lines=60, fit=True)
     assert centred.crop["r"] == 30
     assert fit.crop == {"cx": 90.0, "cy": 30.0, "r": pytest.approx(np.hypot(180, 60) / 2)}
-    from stringbot.planner.thread import coverage
+    from stringbot.planner.model.thread import coverage
     c = coverage(fit.chord_list(), fit.pin_xy, size=200, width_px=1.0, saturated=False)
     bar = c[72:128, 7:24].mean()  # where the bar lies in the letterboxed crop
     board = c[10:55, 60:140].mean()  # white above the picture
@@ -172,7 +172,7 @@ def test_a_chord_drawn_again_adds_nothing_and_is_never_chosen_again():
 
 
 def test_residual_starts_at_an_end_of_its_best_chord_unless_told():
-    from stringbot.planner.residual import best_start
+    from stringbot.planner.methods.residual import best_start
 
     g = disc_picture()
     space = chord_space(80)
@@ -198,7 +198,7 @@ def test_residual_starts_at_an_end_of_its_best_chord_unless_told():
 
 
 def test_the_error_as_the_eye_sees_it_is_kept_exactly_and_auto_stops_at_its_lowest():
-    from stringbot.planner.eye import EyeError
+    from stringbot.planner.methods.eye import EyeError
 
     g = disc_picture()
     space = chord_space(80)

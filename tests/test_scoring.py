@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from stringbot.planner.chords import pin_positions
-from stringbot.planner.scoring import SSIM_KEYS, score_chords, ssim_pair, woven_drawing, woven_error
+from stringbot.planner.model.chords import pin_positions
+from stringbot.planner.model.scoring import SSIM_KEYS, score_chords, ssim_pair, woven_drawing, woven_error
 
 
 def test_ssim_pair_gives_both_windows_plain_and_blurred():

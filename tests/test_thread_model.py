@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stringbot.planner.thread import ThreadModel, composite, coverage, footprints, saturate
+from stringbot.planner.model.thread import ThreadModel, composite, coverage, footprints, saturate
 
 
 def segment(angle_deg, length=0.8, centre=(0.5, 0.5)):
@@ -80,7 +80,7 @@ def test_thread_model_units():
 
 @pytest.mark.parametrize("size, width", [(2048, 1.0), (401, 0.2), (300, 3.0)])
 def test_a_single_thread_stamp_is_the_footprint_of_that_thread_in_either_form(size, width):
-    from stringbot.planner.thread import SegmentStamp
+    from stringbot.planner.model.thread import SegmentStamp
 
     stamp = SegmentStamp(size, width)
     rng = np.random.default_rng(size)

@@ -14,7 +14,7 @@ import sys
 
 import pytest
 
-from stringbot.planner.chords import pin_positions
+from stringbot.planner.model.chords import pin_positions
 from stringbot.planner.plan_file import Plan, write_plan
 from test_cli_plan import SMALL, one_error_line, picture, private_cache, run  # noqa: F401  (fixtures)
 from test_gcode_replay import make_plan, random_sequence

@@ -7,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from stringbot.planner import woven_helper
+from stringbot.planner.methods import woven_helper
 from stringbot.planner.build import plan_picture
-from stringbot.planner.residual import PATIENCE
+from stringbot.planner.methods.residual import PATIENCE
 
 from planner_helpers import picture
 from test_polish import horse_like
@@ -50,7 +50,7 @@ def test_a_helper_that_fails_leaves_the_polish_here(monkeypatch, caplog):
         raise RuntimeError("the helper breaks")
 
     monkeypatch.setattr(woven_helper, "_serve", broken)
-    with caplog.at_level(logging.WARNING, logger="stringbot.planner.woven_helper"):
+    with caplog.at_level(logging.WARNING, logger="stringbot.planner.methods.woven_helper"):
         two = _plan(monkeypatch, 2)
     assert "helper process failed" in caplog.text
     assert two.stats["polish_processes"] == 1
@@ -87,7 +87,7 @@ def test_the_number_of_processes_follows_the_setting(monkeypatch):
 
 
 def test_the_twin_draws_the_preview_one_process_would(monkeypatch):
-    from stringbot.planner.render import png_bytes, preview_drawing, preview_png
+    from stringbot.planner.model.render import png_bytes, preview_drawing, preview_png
 
     one = _plan(monkeypatch, 1, preview=1001)
     two = _plan(monkeypatch, 2, preview=1001)
@@ -104,7 +104,7 @@ def test_the_twin_draws_the_preview_one_process_would(monkeypatch):
 
 
 def test_a_twin_that_does_not_draw_leaves_the_preview_here(monkeypatch, caplog):
-    from stringbot.planner.render import png_bytes, preview_drawing, preview_png
+    from stringbot.planner.model.render import png_bytes, preview_drawing, preview_png
 
     one = _plan(monkeypatch, 1, preview=1001)
 
@@ -113,7 +113,7 @@ def test_a_twin_that_does_not_draw_leaves_the_preview_here(monkeypatch, caplog):
 
     monkeypatch.setattr(woven_helper.TwinDrawing, "make", no_drawing)
     two = _plan(monkeypatch, 2, preview=1001)
-    with caplog.at_level(logging.WARNING, logger="stringbot.planner.woven_helper"):
+    with caplog.at_level(logging.WARNING, logger="stringbot.planner.methods.woven_helper"):
         img = preview_drawing(two, 1001)
     assert "did not draw the preview" in caplog.text
     # drawn here from the plan's threads: the drawing the twin would have made

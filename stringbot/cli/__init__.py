@@ -14,7 +14,7 @@ import sys
 import click
 
 # The planner's linear algebra is small: one BLAS thread.  More only spin between calls, taking the
-# second core from the polish's twin process (stringbot.planner.woven_helper).  A setting of the
+# second core from the polish's twin process (stringbot.planner.methods.woven_helper).  A setting of the
 # user's own wins; numpy is not imported yet here.
 if not any(os.environ.get(v) for v in ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")):
     os.environ["OPENBLAS_NUM_THREADS"] = "1"

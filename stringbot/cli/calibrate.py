@@ -34,7 +34,7 @@ def sheet_cmd(machine, output, template, paper, force):
     from .._files import check_not_same_file, check_ours, check_output_path, write_all_atomic
     from ..motion import estimate, format_duration
     from ..motion.calibration_sheet import sheet_pdf, sheet_svg
-    from ..planner.calibration import design_sheet, sheet_plan
+    from ..planner.calibration.sheet import design_sheet, sheet_plan
     from .planning import _refuse_a_wound_plan
 
     template = template or os.path.splitext(output)[0] + ".pdf"
@@ -78,8 +78,8 @@ def fit_cmd(photo, machine, sheet_path, output):
     from firmware_protocol.machine import MachineFileError, bundled_dir, load_machine
 
     from .._files import check_not_same_file, check_output_path, write_atomic
-    from ..planner.calibration import design_sheet, sheet_from_plan
-    from ..planner.calibration_fit import fit_photo
+    from ..planner.calibration.sheet import design_sheet, sheet_from_plan
+    from ..planner.calibration.photo import fit_photo
     from ..planner.plan_file import read_plan
 
     if not output.lower().endswith(".toml"):

@@ -160,7 +160,7 @@ Examples:
 def animate_cmd(plan, output, frames, size, fps):
     """Animate PLAN: the painting growing in winding order, newest thread in red (a colour plan:
     each thread in its colour over the board, the newest in the opposite colour)."""
-    from ..planner.frames import Mp4Unavailable, gif_bytes, growth_frames, mp4_bytes
+    from ..planner.model.frames import Mp4Unavailable, gif_bytes, growth_frames, mp4_bytes
     from ..planner.plan_file import read_plan
 
     ext = os.path.splitext(output)[1].lower()

@@ -91,8 +91,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
 
     from .._files import mark_png, write_all_atomic
     from ..planner.build import plan_picture
-    from ..planner.image import parse_crop
-    from ..planner.render import preview_png
+    from ..planner.picture.read import parse_crop
+    from ..planner.model.render import preview_png
 
     mach = None
     if machine is not None:
@@ -185,7 +185,7 @@ def warn(text):
 def warn_small_crop(image, *, fit=True):
     """Warn when the default crop keeps less than :data:`MIN_CROP_SHARE` of ``image`` (a panorama or a
     strip: its centre only), naming ``--fit`` (where the command has it) and ``--crop``."""
-    from ..planner.image import default_crop_share
+    from ..planner.picture.read import default_crop_share
 
     share, (w, h) = default_crop_share(image)
     if share >= MIN_CROP_SHARE:
@@ -255,7 +255,7 @@ def render_cmd(plan, output, size, binary):
     plan in its colours, layer on layer."""
     from .._files import check_not_same_file, check_ours, check_output_path, check_suffix, mark_png, write_atomic
     from ..planner.plan_file import read_plan
-    from ..planner.render import draw, draw_woven, png_bytes
+    from ..planner.model.render import draw, draw_woven, png_bytes
 
     if not 16 <= size <= 8001:
         raise BadInput(f"--size {size}; expected 16..8001 pixels")
@@ -328,7 +328,7 @@ def score_cmd(plan, image, as_json, colour):
     import os
 
     from ..planner.plan_file import read_plan
-    from ..planner.scoring import BLUR_SIGMA
+    from ..planner.model.scoring import BLUR_SIGMA
 
     p = read_plan(plan)
     if image is None:
@@ -340,7 +340,7 @@ def score_cmd(plan, image, as_json, colour):
             image = beside  # a relative source path, taken from the plan's folder
     if colour or not p.is_mono:
         return _score_colour(p, plan, image, as_json)
-    from ..planner.scoring import score_picture
+    from ..planner.model.scoring import score_picture
 
     r = score_picture(p, image, target="luminance")
     if p.source.get("sha256") and p.source["sha256"] != r["source"]["sha256"]:

@@ -1,6 +1,6 @@
 """The printed calibration sheet: the marks a photo is found by, the pins to lay it on, the patches' names.
 
-A 1:1 drawing of :class:`~stringbot.planner.calibration.Sheet` (its module
+A 1:1 drawing of :class:`~stringbot.planner.calibration.sheet.Sheet` (its module
 notes have the layout): the square sheet's edge, the four corner marks (a ring
 at the top left, discs at the other corners), every pin (to lay the sheet on
 the ring, pin 0 at the top), the cut circle just inside the pins (cut the disc

@@ -16,10 +16,10 @@ Methods (the registry: :mod:`stringbot.planner.methods`)
     default) plans both and keeps the drawing that scores higher by the
     paper's own measure (section 4.1: SSIM plain plus blurred, with both the
     Gaussian and the uniform window, summed, so that no one variant decides;
-    see :mod:`stringbot.planner.scoring`).  Giving beta, gamma or T
+    see :mod:`stringbot.planner.model.scoring`).  Giving beta, gamma or T
     means ``detail`` with those values.
 ``greedy``
-    The ThreadTone baseline (see :mod:`stringbot.planner.greedy`).
+    The ThreadTone baseline (see :mod:`stringbot.planner.methods.greedy`).
 """
 
 import logging
@@ -29,8 +29,8 @@ import time
 import numpy as np
 
 from ..errors import BadInput
-from .chords import chord_space, pixel_chords
-from .image import read_mask, read_picture
+from .model.chords import chord_space, pixel_chords
+from .picture.read import read_mask, read_picture
 from .methods import DEFAULT_METHOD, Job, get_method, methods_taking
 from .plan_file import Plan
 from .progress import report
@@ -101,8 +101,8 @@ def check_knobs(*, pins, frame, size, lines, start_pin, method, alpha, beta, gam
 
 
 def thread_model(diameter_mm=None, thread_mm=None):
-    """The :class:`~stringbot.planner.thread.ThreadModel` of the options; BadInput naming the one out of range."""
-    from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
+    """The :class:`~stringbot.planner.model.thread.ThreadModel` of the options; BadInput naming the one out of range."""
+    from .model.thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM, ThreadModel
 
     d = DEFAULT_DIAMETER_MM if diameter_mm is None else diameter_mm
     t = DEFAULT_THREAD_MM if thread_mm is None else thread_mm
@@ -219,13 +219,13 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         300 when there is no polish, else 0 (the polish does it better).
     polish : int or None
         Residual only: pins the as-woven polish revisits
-        (:mod:`stringbot.planner.polish`; 0: none); None: 1000 with
+        (:mod:`stringbot.planner.methods.polish`; 0: none); None: 1000 with
         ``lines="auto"``, 0 with a line count (the paper's SSIM at a given
         line count rewards the pixel-level drawing, which the polish trades
         for the piece as seen).
     preview : int or None
         The side of the drawing as woven the caller will make
-        (:func:`~stringbot.planner.render.draw_woven`, black on white): a
+        (:func:`~stringbot.planner.model.render.draw_woven`, black on white): a
         polish on two cores draws it meanwhile (the plan's ``woven_drawings``).
 
     Returns
@@ -268,7 +268,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         if not (isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 1_000_000):
             raise BadInput(f"--{name} {v}; expected 0..1000000 pins")
     if fit and picture is None:
-        from .image import fit_crop
+        from .picture.read import fit_crop
 
         crop = fit_crop(path, frame)
     report("reading the picture")
@@ -279,7 +279,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     if importance is not None:
         weights = read_mask(importance, size=size, crop=pic.crop,
                             source_size=(pic.source["width"], pic.source["height"]))
-    from .fitness import frame_mask
+    from .methods.fitness import frame_mask
 
     mask = frame_mask(size, frame)
     check_not_too_dark(pic.gray, mask)
@@ -317,7 +317,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         candidates = style_candidates(style, beta=beta, gamma=gamma, T=T)
         ref = None
         if len(candidates) > 1:
-            from .scoring import SCORE_SIZE
+            from .model.scoring import SCORE_SIZE
 
             ref = (reference.gray if reference is not None else pic.gray if picture is not None else
                    read_picture(path, size=SCORE_SIZE, crop=pic.crop, gray=gray, weights=pic.weights).gray)
@@ -351,10 +351,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
 
 def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None):
     """The default method: residual choice under the thread model, then refinement and polish."""
-    from .greedy import _PinLines
-    from .polish import polish_plan
-    from .refine import refine_sequence
-    from .residual import Canvas, residual_sequence
+    from .methods.greedy import _PinLines
+    from .methods.polish import polish_plan
+    from .methods.refine import refine_sequence
+    from .methods.residual import Canvas, residual_sequence
 
     size = pic.gray.shape[0]
     target = np.where(mask, 1.0 - pic.gray / 255.0, 0.0)
@@ -370,10 +370,10 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
     pin_lines = _PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / points))
     helper = None
     if polish:
-        from .woven_helper import WovenHelper, two_cores
+        from .methods.woven_helper import WovenHelper, two_cores
 
         if two_cores():  # a helper process draws the polish's canvas while the threads are chosen
-            from .woven_helper import TwinDrawing
+            from .methods.woven_helper import TwinDrawing
 
             drawing = None if preview is None else TwinDrawing(preview, model)
             helper = WovenHelper(lambda: _woven_canvas(target, w, space, model), space, drawing=drawing)
@@ -382,7 +382,7 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
         seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines,
                                 on_chord=None if helper is None else helper.add)
         t_choose = time.perf_counter() - t
-        from . import residual
+        from .methods import residual
 
         # more lines than a run that stopped itself can keep (it keeps PATIENCE fewer than it chose)
         capped = lines == "auto" and len(seq) - 1 > residual.MAX_AUTO - residual.PATIENCE
@@ -422,14 +422,14 @@ def _residual_run(space, pic, mask, weights, lines, model, *, start_pin, refine,
 
 def _woven_canvas(target, w, space, model):
     """The polish's canvas for a picture at the working size: the error on a grid of
-    :data:`~stringbot.planner.woven.GRID` px at most (the eye's blur is 1 px there)."""
-    from .fitness import frame_mask
-    from .woven import GRID, WovenCanvas
+    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there)."""
+    from .methods.fitness import frame_mask
+    from .methods.woven import GRID, WovenCanvas
 
     size = target.shape[0]
     m = min(GRID, size)
     if m != size:
-        from .resample import resize_square
+        from .picture.resample import resize_square
 
         target = resize_square(target, m)
         w = resize_square(w, m)
@@ -453,9 +453,9 @@ def _fitness_runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alph
         (the sum of the four SSIM figures against the picture, both windows plain
         and blurred; 0 for a single candidate).
     """
-    from .fitness import chord_weights, edge_consistency, gradients, solve_fitness
-    from .scoring import SSIM_KEYS, score_chords
-    from .sampling import fitness_table, sample_connected, sample_disconnected
+    from .methods.fitness import chord_weights, edge_consistency, gradients, solve_fitness
+    from .model.scoring import SSIM_KEYS, score_chords
+    from .methods.sampling import fitness_table, sample_connected, sample_disconnected
 
     inv = 255.0 - pic.gray
     if float(inv[mask].max(initial=0.0)) < 1.0:

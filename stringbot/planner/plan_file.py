@@ -44,7 +44,7 @@ import numpy as np
 
 from .._files import write_atomic
 from ..errors import BadInput
-from .thread import ThreadModel
+from .model.thread import ThreadModel
 
 __all__ = ["Plan", "Layer", "read_plan", "write_plan", "FORMAT", "VERSION", "VERSIONS", "MONO_COLOR",
            "MONO_BACKGROUND", "require_one_layer"]
@@ -114,11 +114,11 @@ class Plan:
     background : str
         The board, ``"#rrggbb"``.
     diameter_mm, thread_mm : float or None
-        The frame's diameter and the thread's width (see :mod:`stringbot.planner.thread`);
+        The frame's diameter and the thread's width (see :mod:`stringbot.planner.model.thread`);
         None where the plan does not record them (drawn with 500 mm and 0.25 mm).
     woven_drawings : callable or None
         ``woven_drawings(size, board, thread)``: the drawing as woven
-        (:func:`~stringbot.planner.render.draw_woven`) made already by the
+        (:func:`~stringbot.planner.model.render.draw_woven`) made already by the
         polish's helper process, or None.  Not saved.
     """
 
@@ -143,7 +143,7 @@ class Plan:
     woven_drawings: object = field(default=None, repr=False, compare=False)
 
     def thread_model(self) -> ThreadModel:
-        """The plan's :class:`~stringbot.planner.thread.ThreadModel` (500 mm / 0.25 mm where not recorded)."""
+        """The plan's :class:`~stringbot.planner.model.thread.ThreadModel` (500 mm / 0.25 mm where not recorded)."""
         return ThreadModel(diameter_mm=float(self.diameter_mm or UNRECORDED_DIAMETER_MM),
                            thread_mm=float(self.thread_mm or UNRECORDED_THREAD_MM))
 

@@ -1,12 +1,12 @@
 """Drawing a plan: as woven (the default), or the paper's binary drawing.
 
 *As woven* (:func:`draw_woven`): the reference rendering
-(:mod:`stringbot.planner.reference`: the threads at the plan's real width
+(:mod:`stringbot.planner.model.reference`: the threads at the plan's real width
 with a sharp edge, their union, converged), black on a white board, so the
 picture predicts the piece.  *Binary* (:func:`draw`):
 black 1-pixel lines (one per chord) on white, pins at ``pin_xy * (size - 1)``
 rounded to pixel centres: the drawing the paper scores (section 4.1,
-:mod:`stringbot.planner.scoring`); a 1-pixel line at 1001 px is a 0.5 mm
+:mod:`stringbot.planner.model.scoring`); a 1-pixel line at 1001 px is a 0.5 mm
 thread on a 500 mm frame, so it looks darker than the piece will.
 """
 
@@ -56,7 +56,7 @@ def draw(plan_or_chords, pin_xy=None, *, size=1001):
 
 
 def draw_woven(plan, *, size=1001, board=255, thread=0, samples=None):
-    """Draw a plan as woven: the reference rendering (:mod:`stringbot.planner.reference`) over the board.
+    """Draw a plan as woven: the reference rendering (:mod:`stringbot.planner.model.reference`) over the board.
 
     Parameters
     ----------
@@ -67,7 +67,7 @@ def draw_woven(plan, *, size=1001, board=255, thread=0, samples=None):
         Gray levels 0..255 of the board and the thread.
     samples : float, optional
         Samples across one thread (default: the reference's
-        :data:`~stringbot.planner.reference.SAMPLES_PER_WIDTH`; the preview:
+        :data:`~stringbot.planner.model.reference.SAMPLES_PER_WIDTH`; the preview:
         :data:`PREVIEW_SAMPLES`).
 
     Returns

@@ -21,8 +21,8 @@ import logging
 
 import numpy as np
 
-from .chords import neighbour_offsets
-from .progress import report
+from ..model.chords import neighbour_offsets
+from ..progress import report
 
 log = logging.getLogger(__name__)
 

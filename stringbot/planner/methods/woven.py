@@ -1,13 +1,13 @@
 """The as-woven polish: refine a plan against the piece as the eye sees it.
 
-The residual planner (:mod:`stringbot.planner.residual`) judges its threads
+The residual planner (:mod:`stringbot.planner.methods.residual`) judges its threads
 pixel by pixel at the working size.  From a step away (and in ``stringbot
 score``'s as-woven error) the piece is seen through a blur of about 2 mm on
 a 500 mm frame: a light gap beside a dark band matters, a thread's own
 stripe does not.
 
 :class:`WovenCanvas` keeps the threads as the reference rendering draws
-them (:mod:`stringbot.planner.union`: how many threads cover each sample of
+them (:mod:`stringbot.planner.model.union`: how many threads cover each sample of
 a fine canvas on which the thread is about one sample wide, 2048 samples a
 side for the default 0.25 mm on 500 mm), the covered share of each pixel of
 a grid of ``m`` pixels (``D``); and the error
@@ -17,7 +17,7 @@ root of the pixel weights (0 outside the frame).  With ``G = B^2 (s (t - D))``
 kept up to date, a change ``dD`` of the drawing (``v = s dD``) changes the
 error by exactly ``-2 <v, G> + <v, B^2 v>``.
 
-:mod:`stringbot.planner.polish` revisits pins of the sequence against it.
+:mod:`stringbot.planner.methods.polish` revisits pins of the sequence against it.
 """
 
 import logging
@@ -26,8 +26,8 @@ import numpy as np
 
 from .eye import EYE_SIGMA, EyeError
 from .residual import fresh, sum_sparse
-from .scoring import WOVEN_SIZE
-from .union import COUNT, UnionStamp, fine_per_pixel, unique
+from ..model.scoring import WOVEN_SIZE
+from ..model.union import COUNT, UnionStamp, fine_per_pixel, unique
 
 log = logging.getLogger(__name__)
 
@@ -248,7 +248,7 @@ class WovenCanvas(EyeError):
 
     def scores(self, pin_lines, a):
         """``(others, score)``: the mean of ``u G`` along each chord from pin ``a`` (its error slope),
-        ``-inf`` for a chord drawn already (a copy adds nothing: :func:`~stringbot.planner.residual.fresh`).
+        ``-inf`` for a chord drawn already (a copy adds nothing: :func:`~stringbot.planner.methods.residual.fresh`).
 
         ``pin_lines`` should not keep its points (``keep=False``): they are kept here, on the padded grid.
         """

@@ -7,8 +7,8 @@ weights (0 outside the frame), on a grid of ``m`` pixels.  With
 ``G = B^2 (s (t - D))`` kept up to date, a change ``dD`` of the drawing
 (``v = s dD``) changes the error by exactly ``-2 <v, G> + <v, B^2 v>``.
 
-The polish (:class:`~stringbot.planner.woven.WovenCanvas`) is one; the
-chooser (:class:`~stringbot.planner.residual.Canvas`) keeps one on a coarse
+The polish (:class:`~stringbot.planner.methods.woven.WovenCanvas`) is one; the
+chooser (:class:`~stringbot.planner.methods.residual.Canvas`) keeps one on a coarse
 grid to know when more threads stop making the piece better
 (``--lines auto``).
 """
@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from .scoring import WOVEN_SIGMA, WOVEN_SIZE
+from ..model.scoring import WOVEN_SIGMA, WOVEN_SIZE
 
 __all__ = ["EyeError", "EYE_SIGMA"]
 

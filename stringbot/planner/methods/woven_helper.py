@@ -1,6 +1,6 @@
 """The polish on two cores: its canvas drawn while the threads are chosen, and its pins revisited by turns.
 
-The polish (:mod:`stringbot.planner.polish`) is most of a default plan's
+The polish (:mod:`stringbot.planner.methods.polish`) is most of a default plan's
 time.  On a machine with two cores (:func:`two_cores`):
 
 * :class:`WovenHelper` forks a helper process before the threads are
@@ -9,7 +9,7 @@ time.  On a machine with two cores (:func:`two_cores`):
   the sequence is done it draws it from the footprints it already has and
   polishes it.
 * For the polish, the helper forks a twin (:func:`twin`).  The pins are
-  revisited in blocks of two (:func:`~stringbot.planner.polish.polish_pins`),
+  revisited in blocks of two (:func:`~stringbot.planner.methods.polish.polish_pins`),
   each block's proposals made before the block ahead of it is settled: the
   two processes take every other block, each making its next block's
   proposals while the other settles the block before, then taking in what
@@ -50,7 +50,7 @@ def two_cores():
 
     want = os.environ.get("STRINGBOT_PROCESSES", "").strip()
     if want not in ("", "1", "2"):
-        from ..errors import BadInput
+        from ...errors import BadInput
 
         raise BadInput(f"STRINGBOT_PROCESSES={want!r}; expected 1 (one process) or 2 (a helper and its twin), "
                        "or unset (two on Linux with two cores)")
@@ -73,7 +73,7 @@ def _fork(body):
     if pid == 0:  # pragma: no cover - the child's coverage is not collected
         code = 1
         try:
-            from .progress import reporting
+            from ..progress import reporting
 
             with reporting(None):  # the terminal is the parent's
                 body()
@@ -86,13 +86,13 @@ def _fork(body):
 
 
 class Partner:
-    """One side of a polish in two processes (:func:`~stringbot.planner.polish.polish_pins`).
+    """One side of a polish in two processes (:func:`~stringbot.planner.methods.polish.polish_pins`).
 
     The blocks of pins alternate between the sides: side 0 makes and settles
     blocks 0, 2, 4, ..., side 1 the others.  Each side makes its next
     block's proposals while the other settles the block before; then it
     takes in what that settling did to the drawing (:meth:`WovenCanvas.replay
-    <stringbot.planner.woven.WovenCanvas.replay>`: the values themselves,
+    <stringbot.planner.methods.woven.WovenCanvas.replay>`: the values themselves,
     so both hold the same drawing), settles its own and hands that on.  The
     pipe carries the proposals and a few numbers; the drawing's changes go
     through ``buffers`` (:func:`buffers`: per side, one per pin of a block,
@@ -173,7 +173,7 @@ def _unpack(buf, sizes):
 
 
 def twin(canvas, seq, order, pin_lines, *, after=None):
-    """Fork a twin that polishes every other block of pins with :func:`~stringbot.planner.polish.polish_pins`
+    """Fork a twin that polishes every other block of pins with :func:`~stringbot.planner.methods.polish.polish_pins`
     (then calls ``after(canvas, seq)``, the drawing and the sequence polished, and ends); returns this side's
     :class:`Partner`."""
     from multiprocessing.connection import Pipe
@@ -201,7 +201,7 @@ class TwinDrawing:
     Made in the planner's process before the helper is forked (a shared
     buffer and a pipe the twin says "done" on); called as a plan's
     ``woven_drawings(size, board, thread)``: the preview
-    (:func:`~stringbot.planner.render.preview_drawing`: uint8, ``size`` px,
+    (:func:`~stringbot.planner.model.render.preview_drawing`: uint8, ``size`` px,
     black thread on white) once the twin has made it, or None (another size,
     or the twin failed: the caller draws it); :meth:`png` the same as PNG
     bytes, which the twin encodes too.
@@ -226,7 +226,7 @@ class TwinDrawing:
 
     def make(self, canvas, seq):  # pragma: no cover - runs in the twin
         """Draw the polished sequence ``seq`` (the twin's, the same as the helper's) and say so."""
-        from .render import PREVIEW_SAMPLES, png_bytes, woven_image
+        from ..model.render import PREVIEW_SAMPLES, png_bytes, woven_image
 
         img = woven_image(list(zip(seq[:-1], seq[1:])), canvas.pin_xy, size=self.size,
                           thread_fraction=self.model.fraction, samples=PREVIEW_SAMPLES)
@@ -280,7 +280,7 @@ class TwinDrawing:
         return self._img
 
     def png(self, size, board, thread):
-        """The drawing as PNG bytes (:func:`~stringbot.planner.render.png_bytes` of it), or None."""
+        """The drawing as PNG bytes (:func:`~stringbot.planner.model.render.png_bytes` of it), or None."""
         return self._png if self(size, board, thread) is not None else None
 
 
@@ -337,7 +337,7 @@ class WovenHelper:
 
         Returns
         -------
-        (seq, stats) as :func:`~stringbot.planner.polish.polish_plan`, or None when the helper failed.
+        (seq, stats) as :func:`~stringbot.planner.methods.polish.polish_plan`, or None when the helper failed.
         """
         self._flush()
         self._send(("polish", [int(p) for p in seq], int(budget), time.perf_counter()))

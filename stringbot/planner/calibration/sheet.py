@@ -1,7 +1,7 @@
 """The calibration sheet: a small windable plan of known thread densities, and its exact model.
 
 ``stringbot calibrate sheet`` winds this plan over a printed sheet;
-``stringbot calibrate fit`` reads a photo of it (:mod:`.calibration_fit`).
+``stringbot calibrate fit`` reads a photo of it (:mod:`.photo`).
 
 Coordinates are millimetres in the plane of the ring, origin at its centre, x
 right, y down, seen from the front; pin ``i`` sits at ``(r sin a, -r cos a)``
@@ -46,8 +46,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import BadInput
-from .chords import pin_positions
+from ...errors import BadInput
+from ..model.chords import pin_positions
 
 __all__ = ["Sheet", "Strip", "design_sheet", "cell_coverage", "sheet_plan", "sheet_from_plan", "MIN_PINS",
            "SHEET_FORMAT", "SHEET_VERSION"]
@@ -406,8 +406,8 @@ def sheet_plan(sheet, *, machine, thread_mm, name=None):
     width the machine's plans are drawn at); the thread the densities were chosen for is
     ``calibration.thread_mm``.
     """
-    from .build import thread_length
-    from .plan_file import Plan
+    from ..build import thread_length
+    from ..plan_file import Plan
 
     pin_xy = pin_positions(sheet.pins)
     chords = list(zip(sheet.sequence[:-1], sheet.sequence[1:]))

@@ -21,7 +21,7 @@ The steps (:func:`fit_photo`):
 4. **The patches** (:func:`measure_cells`): each cell's mean reflectance,
    every photo pixel inside it weighted by the sheet area it sees.
 5. **The thread** (:func:`fit_thread`): a cell covered a fraction ``F(w)`` by
-   threads of width ``w`` (:func:`~stringbot.planner.calibration.cell_coverage`,
+   threads of width ``w`` (:func:`~stringbot.planner.calibration.sheet.cell_coverage`,
    the exact union of sharp bands) reflects ``board - (board - thread) F(w)``;
    ``w`` and ``thread`` by least squares over the cells (scipy).
 
@@ -39,8 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import BadInput
-from .calibration import cell_coverage
+from ...errors import BadInput
+from .sheet import cell_coverage
 
 log = logging.getLogger(__name__)
 
@@ -65,8 +65,8 @@ def read_photo(path, *, what="photo"):
     ndarray of float32, shape (rows, cols)
         Linear light in [0, 1] (sRGB decoded); pixel ``(r, c)`` is centred on ``(x, y) = (c, r)``.
     """
-    from .image import _upright_size, read_picture
-    from .palette import to_linear
+    from ..picture.read import _upright_size, read_picture
+    from ..palette import to_linear
 
     w, h = _upright_size(path, what)
     side = max(w, h)
@@ -348,12 +348,12 @@ class Fit:
 
     @property
     def board_gray(self):
-        from .palette import to_srgb
+        from ..palette import to_srgb
         return float(to_srgb(self.board))
 
     @property
     def thread_gray(self):
-        from .palette import to_srgb
+        from ..palette import to_srgb
         return float(to_srgb(self.thread))
 
 

@@ -1,10 +1,10 @@
 """Refinement: local changes to a pin sequence that keep one thread and never make the picture worse.
 
-After the residual planner (:mod:`stringbot.planner.residual`) a thread chosen
+After the residual planner (:mod:`stringbot.planner.methods.residual`) a thread chosen
 early may no longer be the best one where it is, once the others are drawn.
 As Birsak et al. (2018) remove and add threads, this pass revisits pins of
 the sequence, each change judged by the exact change of the error of the
-drawing as woven (:class:`~stringbot.planner.residual.Canvas`) and kept only
+drawing as woven (:class:`~stringbot.planner.methods.residual.Canvas`) and kept only
 when it lowers it, so the picture can only get better and the thread stays
 one continuous thread (a pin is replaced or dropped between its two
 neighbours; no pin twice in a row):

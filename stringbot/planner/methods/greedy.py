@@ -33,7 +33,7 @@ import logging
 
 import numpy as np
 
-from .chords import pin_pixels
+from ..model.chords import pin_pixels
 
 log = logging.getLogger(__name__)
 
@@ -233,7 +233,7 @@ def greedy_sequence(space, size, gray, mask, lines, *, start_pin=0, weight=15.0,
 def plan_greedy(job):
     """``--method greedy`` through the methods' contract (:mod:`stringbot.planner.methods`):
     ThreadTone's weight of 15 on its 500-px radius, scaled to the working size."""
-    from .progress import report
+    from ..progress import report
 
     size = job.picture.gray.shape[0]
     radius = job.knobs["greedy_reference_radius"]

@@ -1,14 +1,14 @@
 """Polish: reroute pins of a sequence where the picture as woven, seen from a step away, gets better.
 
-After the residual planner (:mod:`stringbot.planner.residual`) has chosen its
+After the residual planner (:mod:`stringbot.planner.methods.residual`) has chosen its
 threads pixel by pixel, this pass revisits pins of the sequence: pin ``k``'s
 two chords ``(p[k-1], p[k])``, ``(p[k], p[k+1])`` may go through another pin
 ``q`` instead, the one whose two chords have the highest error slope.  The
 change is judged by the exact change of the as-woven error of
-:class:`~stringbot.planner.woven.WovenCanvas` (where the threads overlap, seen
+:class:`~stringbot.planner.methods.woven.WovenCanvas` (where the threads overlap, seen
 through the eye's blur) and kept only when it lowers that error.  So the
 thread stays one continuous thread with the same number of lines, and the
-picture can only get better.  (Dropping pins as :mod:`~stringbot.planner.refine`
+picture can only get better.  (Dropping pins as :mod:`~stringbot.planner.methods.refine`
 does was tried here too: it changed the as-woven error by less than 0.0001
 on the horse and the camera, at a sixth more time.)
 
@@ -16,7 +16,7 @@ The pins revisited are the ``budget`` whose chords draw most where the picture
 is already darker than wanted (a fixed number, so that the same picture
 always gives the same plan).  They go in blocks of two, each block's
 proposals made before the block ahead of it is settled, so that on two cores
-two processes take turns (:mod:`stringbot.planner.woven_helper`) and reach
+two processes take turns (:mod:`stringbot.planner.methods.woven_helper`) and reach
 the same plan.
 """
 
@@ -104,7 +104,7 @@ def polish_pins(canvas, seq, order, pin_lines, *, partner=None):
     Parameters
     ----------
     partner : optional
-        The other process (:class:`~stringbot.planner.woven_helper.Partner`):
+        The other process (:class:`~stringbot.planner.methods.woven_helper.Partner`):
         ``partner.run(blocks, make, settle, replay)`` makes and settles this
         process's blocks (``make(k)``, ``settle(proposal) -> (made, change)``)
         and replays the other's (``replay(proposal, made, change)``) in order.
@@ -164,7 +164,7 @@ def polish_plan(canvas, seq, space, *, budget, partner=None):
         Pins to revisit.
     partner : callable, optional
         ``partner(canvas, seq, order, pin_lines)`` returns a partner for
-        :func:`polish_pins` (a forked process: :func:`~stringbot.planner.woven_helper.twin`),
+        :func:`polish_pins` (a forked process: :func:`~stringbot.planner.methods.woven_helper.twin`),
         or None to polish alone.
 
     Returns

@@ -111,9 +111,9 @@ METHODS = {m.name: m for m in (
            knobs=("refine", "polish"), gray="luminance", stops_itself=True),  # the piece is seen by its luminance
     Method("fitness", "the paper's method", knobs=("disconnected", "style", "beta", "gamma", "T")),
     Method("greedy", "ThreadTone as published", size=1001, gray="luminance", resample="bilinear",
-           luminance_weights="stringbot.planner.image:CV2_LUMINANCE",
-           start_quarter=True, crop="stringbot.planner.image:threadtone_crop",
-           run="stringbot.planner.greedy:plan_greedy"),
+           luminance_weights="stringbot.planner.picture.read:CV2_LUMINANCE",
+           start_quarter=True, crop="stringbot.planner.picture.read:threadtone_crop",
+           run="stringbot.planner.methods.greedy:plan_greedy"),
 )}
 DEFAULT_METHOD = next(iter(METHODS))
 
@@ -121,7 +121,7 @@ DEFAULT_METHOD = next(iter(METHODS))
 def get_method(name):
     """The :class:`Method` called ``name``; BadInput naming the methods there are."""
     if name not in METHODS:
-        from ..errors import BadInput
+        from ...errors import BadInput
 
         raise BadInput(f"--method {name!r}; expected one of {', '.join(METHODS)}")
     return METHODS[name]

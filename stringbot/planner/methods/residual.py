@@ -2,7 +2,7 @@
 
 The picture is a target *darkness* ``t = 1 - gray / 255`` (0 outside the
 frame).  The planner keeps the drawing as woven under the planner's thread
-model (:mod:`stringbot.planner.union`: the reference rendering's union of
+model (:mod:`stringbot.planner.model.union`: the reference rendering's union of
 sharp threads on a fine canvas of ``f x f`` samples per working pixel, the
 thread about one sample wide): ``D``, the share of each working pixel the
 threads drawn so far cover.  The error is ``E = sum w (t - D)^2`` (``w``: 1
@@ -23,15 +23,15 @@ lies on the first and adds nothing (its score is 0).  The last ``min_loop``
 pins are not gone back to.
 
 *Stopping* (``lines="auto"``).  What decides is the error as the eye sees it
-from a step away, the as-woven scorer's (:mod:`stringbot.planner.eye`:
+from a step away, the as-woven scorer's (:mod:`stringbot.planner.methods.eye`:
 blurred, on a coarse grid, kept up to date chord by chord).  A chord that
 does not lower it may still lead the thread to where the next ones do, so
 the run goes on until ``patience`` chords in a row have not brought it
 below its lowest, and the sequence is cut back to where it was lowest:
 another thread would no longer improve the piece as it will hang.
 
-The sequence then goes to :mod:`stringbot.planner.refine` (a line count) or
-:mod:`stringbot.planner.polish` (``lines="auto"``).
+The sequence then goes to :mod:`stringbot.planner.methods.refine` (a line count) or
+:mod:`stringbot.planner.methods.polish` (``lines="auto"``).
 """
 
 import logging
@@ -39,8 +39,8 @@ import logging
 import numpy as np
 
 from .greedy import _PinLines
-from .progress import report
-from .union import COUNT, UnionStamp, fine_per_pixel, unique
+from ..progress import report
+from ..model.union import COUNT, UnionStamp, fine_per_pixel, unique
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """The planner's thread model: the reference rendering's union of sharp threads, kept up to date.
 
-The reference rendering (:mod:`stringbot.planner.reference`) covers a sample
+The reference rendering (:mod:`stringbot.planner.model.reference`) covers a sample
 of a fine canvas when it lies within half a thread's width of any thread's
 line.  The planners keep the same test on a fine canvas of ``f x f``
 samples per pixel of their working grid (the thread at least about one
@@ -19,8 +19,8 @@ mean gray and 0.005-0.013 rms (docs/planner.md, "The planner's thread
 model"; ``benchmarks/bench_model_agreement.py``).
 
 :class:`UnionStamp` gives a thread's samples and the pixels they fall in;
-the chooser (:class:`~stringbot.planner.residual.Canvas`) and the polish
-(:class:`~stringbot.planner.woven.WovenCanvas`) keep the counts.
+the chooser (:class:`~stringbot.planner.methods.residual.Canvas`) and the polish
+(:class:`~stringbot.planner.methods.woven.WovenCanvas`) keep the counts.
 """
 
 import math
@@ -68,7 +68,7 @@ class UnionStamp:
 
     def __call__(self, xy0, xy1):
         """The samples the thread from ``xy0`` to ``xy1`` covers: what
-        :func:`~stringbot.planner.reference.thread_samples` gives, made with few array operations."""
+        :func:`~stringbot.planner.model.reference.thread_samples` gives, made with few array operations."""
         F = self.F
         x0, y0, x1, y1 = xy0[0] * F, xy0[1] * F, xy1[0] * F, xy1[1] * F
         if abs(x1 - x0) >= abs(y1 - y0):  # a run of rows per column

@@ -1,0 +1,1 @@
+"""Measuring a thread: the calibration sheet (:mod:`.sheet`) and reading a photo of it wound (:mod:`.photo`)."""

@@ -1,0 +1,1 @@
+"""Reading the picture: any PIL picture, cropped, grayed and scaled to the working size."""
