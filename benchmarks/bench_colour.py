@@ -84,7 +84,7 @@ def per_channel(pic_path, plan):
     from stringbot.planner.build import plan_picture
     from stringbot.planner.colour import unmix
     from stringbot.planner.colour_render import SCORE_SIZE, colour_score
-    from stringbot.planner.methods.fitness import frame_mask
+    from stringbot.planner.model.chords import frame_mask
     from stringbot.planner.picture.read import Picture, read_picture
     from stringbot.planner.palette import hex_to_rgb, to_linear
 

@@ -9,7 +9,7 @@ the chords are drawn
   at 512 px: the truth;
 * by each of the planner's models, as the planner would hold that plan:
   the chooser's canvas at the working size (401 px, :class:`Canvas
-  <stringbot.planner.methods.residual.Canvas>`), its coarse grid of the error as the
+  <stringbot.planner.methods.canvas.Canvas>`), its coarse grid of the error as the
   eye sees it (``--lines auto`` stops by it), and the polish's canvas
   (:class:`WovenCanvas <stringbot.planner.methods.woven.WovenCanvas>`, 256 px, its
   fine canvas 2048 samples a side).
@@ -63,12 +63,11 @@ def compare(model_gray, ref_gray, target, mask):
 
 def models(plan, image):
     """Each model's drawing of the plan (gray, 1 white) and its own as-woven error figure (or None)."""
-    from stringbot.planner.build import _woven_canvas
-    from stringbot.planner.model.chords import chord_space
-    from stringbot.planner.methods.fitness import frame_mask
-    from stringbot.planner.picture.read import read_picture
-    from stringbot.planner.methods.residual import Canvas
+    from stringbot.planner.methods.canvas import Canvas
+    from stringbot.planner.methods.residual import woven_canvas
+    from stringbot.planner.model.chords import chord_space, frame_mask
     from stringbot.planner.model.scoring import LUMINANCE
+    from stringbot.planner.picture.read import read_picture
 
     chords = plan.chord_list()
     model = plan.thread_model()
@@ -85,7 +84,7 @@ def models(plan, image):
     out["eye"] = (1.0 - eye.D.reshape(me, me), float(np.sqrt(eye.error() / area)))
     space = chord_space(plan.pins, plan.frame)
     space.pin_xy = plan.pin_xy  # a peer's pins where it put them
-    woven = _woven_canvas(target, w, space, model)
+    woven = woven_canvas(target, w, space, model)
     woven.build(chords)
     m = woven.size
     out["polish"] = (1.0 - woven.D.reshape(m, m), float(np.sqrt(woven.error() / float(np.sum(woven.s ** 2)))))
@@ -128,7 +127,7 @@ def main():
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from quality_table import peer_plan
 
-    from stringbot.planner.methods.fitness import frame_mask
+    from stringbot.planner.model.chords import frame_mask
     from stringbot.planner.picture.read import read_picture
     from stringbot.planner.model.reference import reference_gray
     from stringbot.planner.model.scoring import LUMINANCE, WOVEN_SIZE

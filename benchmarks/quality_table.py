@@ -74,7 +74,7 @@ def sheet_tile(plan, side):
 
 
 def source_tile(image, crop, side):
-    from stringbot.planner.methods.fitness import frame_mask
+    from stringbot.planner.model.chords import frame_mask
     from stringbot.planner.picture.read import read_picture
     from stringbot.planner.model.scoring import LUMINANCE
 

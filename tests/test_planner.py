@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 from stringbot.errors import BadInput
-from stringbot.planner.build import auto_lines, plan_picture, thread_length
+from stringbot.planner.build import plan_picture
+from stringbot.planner.knobs import auto_lines
 from stringbot.planner.model.chords import (chord_pixels, chord_space, line_pixels, pin_positions,
                                       pixel_chords)
-from stringbot.planner.methods.fitness import frame_mask, solve_fitness
+from stringbot.planner.methods.fitness import solve_fitness
+from stringbot.planner.model.chords import frame_mask, thread_length
 from stringbot.planner.methods.greedy import greedy_sequence
 from stringbot.planner.model.render import draw
 from stringbot.planner.model.scoring import score

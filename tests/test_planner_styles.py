@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from stringbot.errors import BadInput
-from stringbot.planner.build import DEFAULTS, FILL, plan_picture, style_candidates
+from stringbot.planner.build import plan_picture
+from stringbot.planner.methods import DEFAULTS
+from stringbot.planner.methods.fitness import FILL, style_candidates
 from stringbot.planner.model.render import draw
 from stringbot.planner.model.scoring import score
 

@@ -11,7 +11,7 @@ from scipy.ndimage import correlate, gaussian_filter
 
 from stringbot.planner.build import plan_picture
 from stringbot.planner.model.chords import chord_space
-from stringbot.planner.methods.fitness import frame_mask
+from stringbot.planner.model.chords import frame_mask
 from stringbot.planner.methods.greedy import _PinLines
 from stringbot.planner.methods.polish import polish_plan
 from stringbot.planner.picture.resample import resize_square

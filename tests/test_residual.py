@@ -6,10 +6,11 @@ import pytest
 from stringbot.errors import BadInput
 from stringbot.planner.build import plan_picture
 from stringbot.planner.model.chords import chord_space
-from stringbot.planner.methods.fitness import frame_mask
+from stringbot.planner.model.chords import frame_mask
 from stringbot.planner.methods.greedy import _PinLines
 from stringbot.planner.methods.refine import refine_sequence
-from stringbot.planner.methods.residual import Canvas, residual_sequence
+from stringbot.planner.methods.canvas import Canvas
+from stringbot.planner.methods.residual import residual_sequence
 from stringbot.planner.model.scoring import woven_error
 
 from planner_helpers import picture

@@ -113,7 +113,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                                "give one of them")
         diameter_mm, thread_mm = mach["ring.diameter_mm"], mach[width]
     pins = 300 if pins is None else pins
-    from ..planner.build import thread_model
+    from ..planner.knobs import thread_model
 
     thread_model(diameter_mm, thread_mm)  # bad sizes are refused before any work
     if colors is not None or background is not None:

@@ -1,8 +1,5 @@
-"""Moved to :mod:`stringbot.planner.methods.fitness`: this old name is the same module, kept only while the colour
-planner still imports it (import-linter forbids it to every other module)."""
+"""The frame mask the colour planner imports from here moved to :mod:`stringbot.planner.model.chords`; this
+old name is kept only while the colour planner still imports it (import-linter forbids it to every other
+module)."""
 
-import sys
-
-from .methods import fitness
-
-sys.modules[__name__] = fitness
+from .model.chords import frame_mask  # noqa: F401

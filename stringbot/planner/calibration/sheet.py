@@ -406,7 +406,7 @@ def sheet_plan(sheet, *, machine, thread_mm, name=None):
     width the machine's plans are drawn at); the thread the densities were chosen for is
     ``calibration.thread_mm``.
     """
-    from ..build import thread_length
+    from ..model.chords import thread_length
     from ..plan_file import Plan
 
     pin_xy = pin_positions(sheet.pins)

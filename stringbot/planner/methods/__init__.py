@@ -1,25 +1,38 @@
-"""The planner's methods: the one place that names them.
+"""The planner's methods: the registry that names them, and each method behind it.
 
 ``stringbot plan --method`` (its choices and help), the knob checks of
 :func:`~stringbot.planner.build.plan_picture`, docs/planner.md (a test checks
 that every method has its section there) and the benchmarks read
 :data:`METHODS`.  Light on purpose (no numpy): the command line imports it at
-start.
+start; a method's module is imported when it runs.
 
-A method added here with ``run = "module:function"`` is run through one
-contract: ``function(job)`` with a :class:`Job` (the chord space, the picture
+Each method is run through one contract: ``run(job)`` (the registry's
+``run = "module:function"``) with a :class:`Job` (the chord space, the picture
 read at the method's working size, the frame mask, the importance weights,
-the line count, the start pin, the thread model and every knob as given)
-returns ``(sequence, params, stats)``: the pins in winding order (a list of
-int, no pin twice in a row), the knobs it used (recorded in the plan's
-``parameters``) and its figures (the plan's ``stats``).  ``residual`` and
-``fitness`` are run by :mod:`~stringbot.planner.build` itself (they return
-more than a sequence: the polish's canvas, a chord set).
+the line count, the start pin, the thread model and every knob) returns
+``(sequence, params, stats)``: the pins in winding order (a list of int, no
+pin twice in a row), the knobs it used (recorded in the plan's
+``parameters``) and its figures (the plan's ``stats``); or an
+:class:`Outcome` when it has more (a chord set that is not one thread, the
+drawings it made meanwhile).
+
+The methods: :mod:`.residual` (the default, with :mod:`.canvas`, :mod:`.refine`,
+:mod:`.polish`, :mod:`.woven`, :mod:`.woven_helper` and :mod:`.eye`),
+:mod:`.fitness` (the paper's, with :mod:`.sampling`) and :mod:`.greedy`
+(ThreadTone's).
 """
 
 from dataclasses import dataclass, field
 
-__all__ = ["Method", "Job", "METHODS", "DEFAULT_METHOD", "get_method", "methods_taking", "method_help"]
+__all__ = ["Method", "Job", "Outcome", "METHODS", "DEFAULT_METHOD", "DEFAULTS", "get_method", "methods_taking",
+           "method_help", "outcome"]
+
+#: The knobs' defaults: the paper's (section 4: pins, size, beta, gamma and T of fitness's ``detail`` style,
+#: epsilon, iterations; alpha: docs/planner.md, "alpha"), the residual's refinement and polish (pins they
+#: revisit) and ThreadTone's (greedy's weight, line width and loop on its 500-px radius).
+DEFAULTS = {"pins": 300, "size": 401, "alpha": 0.0, "beta": 5.0, "gamma": 10.0, "T": 30.0, "epsilon": 2,
+            "iterations": 25, "refine": 300, "polish": 1000, "greedy_weight": 15.0, "greedy_width": 3, "greedy_min_loop": 3,
+            "greedy_reference_radius": 500.0}
 
 
 @dataclass(frozen=True)
@@ -32,6 +45,8 @@ class Method:
         What ``--method`` takes and the plan's ``method`` records.
     summary : str
         One line for ``plan --help``.
+    run : str
+        ``"module:function"`` of the method's run (see the module notes).
     knobs : tuple of str
         The method-only options it takes (``--style``, ``--disconnected``, ...); giving one to
         a method that does not take it is refused, naming the methods that do.
@@ -45,30 +60,30 @@ class Method:
         ``"module:name"`` of the RGB weights it grays by when its gray is ``luminance`` (``""``:
         skimage's rgb2gray weights).
     start_quarter : bool
-        Its first pin is ``pins // 4`` when ``--start-pin`` is not given (else 0; ``residual``
-        picks an end of its best chord).
+        Its first pin is ``pins // 4`` when ``--start-pin`` is not given (else 0).
+    picks_start : bool
+        It picks its first pin itself when ``--start-pin`` is not given (its job's ``start_pin`` is
+        None; the plan records the first pin of its sequence).
     crop : str
         ``"module:function"`` giving its crop of a picture path when none is given (``""``:
         the largest centred circle).
     stops_itself : bool
         With ``--lines auto`` it decides when to stop; else it draws ``500 + 10 (255 - mean
         gray)`` lines (the paper's section 3.3).
-    run : str
-        ``"module:function"`` of the method's run (see the module notes); ``""`` for the two
-        that :mod:`~stringbot.planner.build` runs itself.
     """
 
     name: str
     summary: str
+    run: str
     knobs: tuple = ()
     size: int | None = None
     gray: str = "decolor"
     resample: str = "lanczos"
     luminance_weights: str = ""
     start_quarter: bool = False
+    picks_start: bool = False
     crop: str = ""
     stops_itself: bool = False
-    run: str = ""
 
     def runner(self):
         """The run function (imported now: it may need numpy)."""
@@ -86,16 +101,39 @@ class Method:
 @dataclass
 class Job:
     """What a method's run gets: see the module notes.  ``lines`` is an int (the line count;
-    ``"auto"`` only for a method that :attr:`~Method.stops_itself`)."""
+    ``"auto"`` only for a method that :attr:`~Method.stops_itself`); ``start_pin`` None only for a
+    method that :attr:`~Method.picks_start`.  ``knobs`` holds :data:`DEFAULTS` updated with every knob
+    as given (None: not given; ``rng``, ``cache``, ``preview`` too); ``reference()`` is the picture as
+    ``stringbot score`` reads it, for a method that compares drawings of its own."""
 
     space: object
     picture: object
     mask: object
     weights: object
     lines: object
-    start_pin: int
+    start_pin: int | None
     model: object
     knobs: dict = field(default_factory=dict)
+    reference: object = None
+
+
+@dataclass
+class Outcome:
+    """What a run returns when it has more than ``(sequence, params, stats)``.
+
+    ``chords``: a chord set instead of one thread (``sequence`` is then empty); ``drawings``: drawings
+    of the plan made meanwhile (the plan's ``woven_drawings``)."""
+
+    sequence: list
+    params: dict
+    stats: dict
+    chords: list | None = None
+    drawings: dict | None = None
+
+
+def outcome(result):
+    """A run's result as an :class:`Outcome`."""
+    return result if isinstance(result, Outcome) else Outcome(*result)
 
 
 def _resolve(dotted):
@@ -108,12 +146,14 @@ def _resolve(dotted):
 #: Every method, by name; the first is the default.
 METHODS = {m.name: m for m in (
     Method("residual", "chords chosen by what the picture as woven still lacks, then refined",
-           knobs=("refine", "polish"), gray="luminance", stops_itself=True),  # the piece is seen by its luminance
-    Method("fitness", "the paper's method", knobs=("disconnected", "style", "beta", "gamma", "T")),
-    Method("greedy", "ThreadTone as published", size=1001, gray="luminance", resample="bilinear",
+           run="stringbot.planner.methods.residual:run", knobs=("refine", "polish"),
+           gray="luminance", picks_start=True, stops_itself=True),  # the piece is seen by its luminance
+    Method("fitness", "the paper's method", run="stringbot.planner.methods.fitness:run",
+           knobs=("disconnected", "style", "beta", "gamma", "T")),
+    Method("greedy", "ThreadTone as published", run="stringbot.planner.methods.greedy:plan_greedy",
+           size=1001, gray="luminance", resample="bilinear",
            luminance_weights="stringbot.planner.picture.read:CV2_LUMINANCE",
-           start_quarter=True, crop="stringbot.planner.picture.read:threadtone_crop",
-           run="stringbot.planner.methods.greedy:plan_greedy"),
+           start_quarter=True, crop="stringbot.planner.picture.read:threadtone_crop"),
 )}
 DEFAULT_METHOD = next(iter(METHODS))
 

@@ -8,7 +8,7 @@ weights (0 outside the frame), on a grid of ``m`` pixels.  With
 (``v = s dD``) changes the error by exactly ``-2 <v, G> + <v, B^2 v>``.
 
 The polish (:class:`~stringbot.planner.methods.woven.WovenCanvas`) is one; the
-chooser (:class:`~stringbot.planner.methods.residual.Canvas`) keeps one on a coarse
+chooser (:class:`~stringbot.planner.methods.canvas.Canvas`) keeps one on a coarse
 grid to know when more threads stop making the piece better
 (``--lines auto``).
 """

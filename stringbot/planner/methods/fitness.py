@@ -1,4 +1,19 @@
-"""The fitness of every chord (section 3.2): a regularised least-squares solve.
+"""``--method fitness``, the paper's: the fitness of every chord (section 3.2), then sampling (3.3).
+
+:func:`run` solves for the fitness of every chord, then samples the sequence
+with error diffusion (:mod:`.sampling`; or, ``disconnected``, the
+priority-queue chord set).  The knobs beta, gamma and T come in two *styles*:
+``detail`` (the paper's defaults, 5 / 10 / 30) and ``fill`` (:data:`FILL`:
+regularisation 30 times stronger and a sharp mapping, T = 1: a chord's
+fitness is then close to its weighted mean darkness and next to no error is
+diffused, so large flat dark areas are filled).  ``auto`` (the default)
+plans both and keeps the drawing that scores higher by the paper's own
+measure (section 4.1: SSIM plain plus blurred, with both the Gaussian and the
+uniform window, summed, so that no one variant decides; see
+:mod:`stringbot.planner.model.scoring`).  Giving beta, gamma or T means
+``detail`` with those values.
+
+The solve: a regularised least-squares problem.
 
 Minimise ``E(f) = ||W (A f - b)||^2 + ||V f||^2`` where
 
@@ -27,26 +42,130 @@ changes the iterates, not the minimiser: ``f`` comes back in the units of
 """
 
 import logging
+import time
 
 import numpy as np
 
+from ...errors import BadInput
+from ..progress import report
+from . import DEFAULTS, Outcome
+
 log = logging.getLogger(__name__)
 
-__all__ = ["frame_mask", "gradients", "edge_consistency", "chord_weights", "solve_fitness"]
+__all__ = ["run", "style_candidates", "gradients", "edge_consistency", "chord_weights", "solve_fitness", "STYLES",
+           "FILL"]
+
+STYLES = ("auto", "detail", "fill")
+#: The ``fill`` style: the paper's regularisation weights times 30 and a sharp tanh.
+FILL = {"beta": 150.0, "gamma": 300.0, "T": 1.0}
 
 
-def frame_mask(size, frame):
-    """Pixels inside the frame.
+def style_candidates(style, *, beta=None, gamma=None, T=None):
+    """The fitness knob settings to try.
+
+    Parameters
+    ----------
+    style : {"auto", "detail", "fill"} or None
+        None is ``auto``.
+    beta, gamma, T : float or None
+        Knobs given by the user (None: not given).
 
     Returns
     -------
-    ndarray of bool, shape (size, size)
+    list of (str, dict)
+        ``[(style name, {"beta": float, "gamma": float, "T": float}), ...]``:
+        both styles for ``auto``, unless beta, gamma or T is given (then
+        ``detail`` with those values and the paper's defaults for the rest).
     """
-    if frame == "square":
-        return np.ones((size, size), dtype=bool)
-    c = (size - 1) / 2.0
-    yy, xx = np.ogrid[:size, :size]
-    return (yy - c) ** 2 + (xx - c) ** 2 <= (c + 0.5) ** 2
+    given = {k: v for k, v in (("beta", beta), ("gamma", gamma), ("T", T)) if v is not None}
+    detail = {k: float(given.get(k, DEFAULTS[k])) for k in ("beta", "gamma", "T")}
+    if style == "fill":
+        return [("fill", dict(FILL))]
+    if style == "detail" or given:
+        return [("detail", detail)]
+    if style not in (None, "auto"):
+        raise ValueError(f"style {style!r}; expected one of {STYLES}")
+    return [("detail", detail), ("fill", dict(FILL))]
+
+
+def run(job):
+    """``--method fitness`` through the methods' contract (:mod:`stringbot.planner.methods`): each style's
+    solve and sampling, the one that scores higher against ``job.reference()`` kept (see the module notes)."""
+    from ..model.chords import pixel_chords
+
+    k = job.knobs
+    space = job.space
+    rowptr, chords_of_pixel = pixel_chords(space, k["size"], cache=k["cache"])
+    stats = {"pixels_per_chord": round(float(len(chords_of_pixel) / max(space.m, 1)), 2)}
+    candidates = style_candidates(k["style"], beta=k["beta"], gamma=k["gamma"], T=k["T"])
+    runs = _runs(space, job.picture, job.mask, job.weights, rowptr, chords_of_pixel, job.lines, alpha=k["alpha"],
+                 epsilon=k["epsilon"], iterations=k["iterations"], start_pin=job.start_pin,
+                 disconnected=k["disconnected"], candidates=candidates,
+                 reference=job.reference() if len(candidates) > 1 else None)
+    del rowptr, chords_of_pixel
+    best = max(runs, key=lambda r: r["rank"])
+    params = {"alpha": k["alpha"], "epsilon": k["epsilon"], "iterations": k["iterations"],
+              "style_requested": k["style"] or "auto", "style": best["style"], **best["knobs"]}
+    stats.update(best["stats"])
+    if len(runs) > 1:
+        stats["styles"] = {r["style"]: dict(r["scores"], solve_seconds=r["stats"]["solve_seconds"]) for r in runs}
+    return Outcome(best["seq"], params, stats, chords=best["chords"])
+
+
+def _runs(space, pic, mask, weights, rowptr, chords_of_pixel, k, *, alpha, epsilon, iterations, start_pin,
+          disconnected, candidates, reference=None):
+    """Solve and sample once per candidate knob setting; score each drawing when there are several.
+
+    ``reference`` (a gray array, any square size) is what the drawings are
+    scored against; plain SSIM, with every pixel weighted alike as in the
+    paper's section 4.1 (an importance mask weighs the solve, not the choice).
+
+    Returns
+    -------
+    list of dict
+        Per candidate: ``style``, ``knobs``, ``seq`` (connected) or ``chords``
+        (disconnected, else None), ``stats``, ``scores`` and ``rank``
+        (the sum of the four SSIM figures against the picture, both windows plain
+        and blurred; 0 for a single candidate).
+    """
+    from ..model.scoring import SSIM_KEYS, score_chords
+    from .sampling import fitness_table, sample_connected, sample_disconnected
+
+    inv = 255.0 - pic.gray
+    if float(inv[mask].max(initial=0.0)) < 1.0:
+        raise BadInput("fitness found nothing to draw: the picture is blank inside the frame; "
+                       "expected a picture with some dark parts")
+    gy, gx = gradients(inv)
+    b = ((1.0 - alpha) * inv + alpha * np.hypot(gx, gy)).ravel()
+    w = (mask.astype(np.float32) if weights is None else np.where(mask, weights, 0).astype(np.float32)).ravel()
+    d = (edge_consistency(space, rowptr, chords_of_pixel, gy, gx) if any(c["gamma"] > 0 for _, c in candidates)
+         else np.zeros(space.m))
+    runs = []
+    for name, knobs in candidates:
+        t = time.perf_counter()
+        report(f"solving ({name})")
+        v = chord_weights(space, d, beta=knobs["beta"], gamma=knobs["gamma"])
+        f, info = solve_fitness(rowptr, chords_of_pixel, b, w, v, iterations=iterations)
+        t_solve = round(time.perf_counter() - t, 3)
+        table = fitness_table(space, f, T=knobs["T"])
+        report(f"sampling ({name})")
+        if disconnected:
+            chords, seq = sample_disconnected(space, table, k, epsilon=epsilon), []
+        else:
+            chords, seq = None, sample_connected(space, table, k, epsilon=epsilon, start_pin=start_pin)
+        run = {"style": name, "knobs": knobs, "seq": seq, "chords": chords, "scores": None, "rank": 0.0,
+               "stats": {"solve_iterations": info["iterations"], "solve_residual": round(info["residual"], 3),
+                         "solve_seconds": t_solve,
+                         "fitness_min": round(float(f.min()), 4), "fitness_max": round(float(f.max()), 4)}}
+        if len(candidates) > 1:
+            report(f"scoring ({name})")
+            drawn = chords if disconnected else list(zip(seq[:-1], seq[1:]))
+            sc = score_chords(drawn, space.pin_xy, pic.gray if reference is None else reference, frame=space.frame)
+            run["scores"] = {k: round(sc[k], 4) for k in SSIM_KEYS}
+            run["rank"] = sum(sc[k] for k in SSIM_KEYS)
+            log.info("style %s: SSIM %.4f, blurred %.4f", name, sc["ssim"], sc["ssim_blurred"])
+        runs.append(run)
+    return runs
 
 
 def gradients(image):

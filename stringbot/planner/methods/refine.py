@@ -4,7 +4,7 @@ After the residual planner (:mod:`stringbot.planner.methods.residual`) a thread 
 early may no longer be the best one where it is, once the others are drawn.
 As Birsak et al. (2018) remove and add threads, this pass revisits pins of
 the sequence, each change judged by the exact change of the error of the
-drawing as woven (:class:`~stringbot.planner.methods.residual.Canvas`) and kept only
+drawing as woven (:class:`~stringbot.planner.methods.canvas.Canvas`) and kept only
 when it lowers it, so the picture can only get better and the thread stays
 one continuous thread (a pin is replaced or dropped between its two
 neighbours; no pin twice in a row):
@@ -25,7 +25,7 @@ import logging
 
 import numpy as np
 
-from .residual import fresh
+from .canvas import fresh
 
 log = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """The default planner: chords chosen with feedback from the picture as woven.
 
 The picture is a target *darkness* ``t = 1 - gray / 255`` (0 outside the
-frame).  The planner keeps the drawing as woven under the planner's thread
+frame).  The planner keeps the drawing as woven (:mod:`.canvas`) under the planner's thread
 model (:mod:`stringbot.planner.model.union`: the reference rendering's union of
 sharp threads on a fine canvas of ``f x f`` samples per working pixel, the
 thread about one sample wide): ``D``, the share of each working pixel the
@@ -35,254 +35,31 @@ The sequence then goes to :mod:`stringbot.planner.methods.refine` (a line count)
 """
 
 import logging
+import time
 
 import numpy as np
 
-from .greedy import _PinLines
+from ...errors import BadInput
 from ..progress import report
-from ..model.union import COUNT, UnionStamp, fine_per_pixel, unique
+from . import Outcome
+from .canvas import Canvas, fresh
+from .greedy import _PinLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Canvas", "residual_sequence", "best_start", "fresh", "sum_sparse", "PATIENCE", "EYE_GRID", "EYE_SHARE"]
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "PATIENCE", "EYE_SHARE"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
 MAX_AUTO = 60_000
-#: the chooser's fine canvas: samples per working pixel so that the thread is about one sample wide, at most
-#: this many samples a side
-CHOOSER_MAX_FINE = 4096
-#: footprints the chooser keeps (about 20 kB each at 401 px): the chords drawn, and those tried by the refinement
-MAX_CACHED = 8000
-#: side of the coarse grid the chooser measures the error as the eye sees it on (``lines="auto"``)
-EYE_GRID = 128
 #: with ``lines="auto"``, the share of a chord's score that is the slope of the error as the eye sees it
 #: (the rest: the pixel error's); docs/planner.md, "How the chooser scores a chord"
 EYE_SHARE = 0.5
-
-
-def sum_sparse(parts, acc, mark):
-    """The sum of sparse vectors: ``(pix, total)``, each index once.
-
-    Parameters
-    ----------
-    parts : list of (ndarray of int, ndarray of float)
-        Indices (each once within a part) and their values.
-    acc, mark : ndarray of float64 / int64
-        Scratch as long as the dense vector; ``acc`` all zeros, and left so.
-    """
-    for idx, val in parts:
-        acc[idx] += val
-    every = np.concatenate([idx for idx, _ in parts])
-    order = np.arange(len(every))
-    mark[every] = order
-    pix = every[mark[every] == order]
-    total = acc[pix]
-    acc[pix] = 0.0
-    return pix, total
-
-
-class Canvas:
-    """The drawing as woven at the working size, and its error against the target.
-
-    Parameters
-    ----------
-    target : ndarray of float, shape (size, size)
-        Darkness wanted, 0..1.
-    weights : ndarray of float, shape (size, size)
-        Pixel weights (0 outside the frame).
-    pin_xy : ndarray of float, shape (pins, 2)
-    width_px : float
-        Thread width in pixels at this size.
-    eye : bool
-        Also keep the error as the eye sees it (:attr:`eye`, for ``lines="auto"``).
-
-    Attributes
-    ----------
-    D : ndarray of float64, shape (size * size,)
-        The share of each pixel the threads cover.
-    C : ndarray of uint16, shape (F * F,)
-        How many threads cover each sample of the fine canvas (``F = f size``).
-    uses : ndarray of int32, shape (pins, pins)
-        How many times each chord is drawn (symmetric).
-    eye : EyeError or None
-    """
-
-    def __init__(self, target, weights, pin_xy, width_px, *, eye=False):
-        self.size = m = target.shape[0]
-        self.t = np.asarray(target, dtype=np.float64).ravel()
-        self.w = np.asarray(weights, dtype=np.float64).ravel()
-        self.D = np.zeros_like(self.t)
-        self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
-        self.width = float(width_px)
-        self.f = fine_per_pixel(width_px, largest=max(1, CHOOSER_MAX_FINE // m))
-        self.F = m * self.f
-        self._stamp = UnionStamp(m, self.f, width_px)
-        self.C = np.zeros(self.F * self.F, dtype=COUNT)
-        self._fp = {}
-        n = len(self.pin_xy)
-        self.uses = np.zeros((n, n), dtype=np.int32)
-        self._mark = np.zeros(m * m, dtype=np.int64)  # scratch: first occurrence of a pixel
-        self._fmark = None  # the same for the fine canvas's samples
-        # a thread's own overlap: half its sum of squared coverage per unit of coverage (measured on a
-        # horizontal and a diagonal thread); the second-order cost of its darkness where none is wanted
-        kap = []
-        for xy0, xy1 in (((0.1, 0.5013), (0.9, 0.5007)), ((0.1013, 0.1), (0.9, 0.9011))):
-            c = self._cover(self._stamp(np.array(xy0), np.array(xy1)))[2]
-            kap.append(float(np.sum(c * c) / (2.0 * np.sum(c))))
-        self.kappa = float(np.mean(kap))
-        # how much one more thread's coverage lowers the error, per unit of coverage (see apply)
-        self.g = (self.w * (self.t - self.kappa)).astype(np.float32)
-        self.eye = None
-        if eye:
-            self._eye_grid(target, weights)
-
-    # -- footprints -------------------------------------------------------------------------------------
-
-    def _cover(self, flat):
-        """``(cu, inv, cover)``: the pixels samples ``flat`` fall in (each once; sample ``i`` in
-        ``cu[inv[i]]``) and the share of each they cover."""
-        cu, inv = unique(self._stamp.cells(flat), self._mark)
-        return cu, inv, np.bincount(inv, minlength=len(cu)) * (1.0 / (self.f * self.f))
-
-    def _footprint(self, a, b):
-        """``(flat, cu, inv, cover)`` of chord ``(a, b)``: its samples and :meth:`_cover` of them (cached)."""
-        key = (a, b) if a < b else (b, a)
-        fp = self._fp.get(key)
-        if fp is None:
-            if len(self._fp) >= MAX_CACHED:
-                self._fp.clear()
-            flat = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])
-            fp = self._fp[key] = (flat,) + self._cover(flat)
-        return fp
-
-    def footprint(self, a, b):
-        """``(pix, cover)`` of the chord between pins ``a`` and ``b``: the pixels it covers (each once) and
-        the share of each it covers alone (cached)."""
-        fp = self._footprint(a, b)
-        return fp[1], fp[3]
-
-    # -- the error ---------------------------------------------------------------------------------------
-
-    def error(self):
-        """``E = sum w (t - D)^2``."""
-        return float(np.sum(self.w * (self.t - self.D) ** 2))
-
-    def _changes(self, chords_out, chords_in):
-        """``(flat, new, pix, dD)``: the samples removing then adding chords touches (each once), their
-        counts after, and the change of ``D`` on the pixels ``pix`` (each once); None for no chords.
-
-        A sample changes where its count goes from 0 to more (covered) or back to 0 (uncovered)."""
-        parts = [(self._footprint(a, b), sign) for chords, sign in ((chords_out, -1), (chords_in, 1))
-                 for a, b in chords]
-        if not parts:
-            return None
-        if len(parts) == 1:  # one chord: its pixels are known
-            (flat, cu, inv, _), sign = parts[0]
-            old = self.C[flat]
-            if sign > 0:
-                new, turns = old + 1, old == 0
-            else:
-                new, turns = old - (old > 0), old == 1
-            return flat, new, cu, np.bincount(inv[turns], minlength=len(cu)) * (sign / (self.f * self.f))
-        every = np.concatenate([fp[0] for fp, _ in parts])
-        if self._fmark is None:  # scratch for the samples (allocated the first time several chords change)
-            self._fmark = np.zeros(self.F * self.F, dtype=np.int64)
-        flat, inv = unique(every, self._fmark)
-        d = np.bincount(inv, weights=np.concatenate([np.full(len(fp[0]), s) for fp, s in parts]),
-                        minlength=len(flat)).astype(np.int64)
-        old = self.C[flat].astype(np.int64)
-        new = np.maximum(old + d, 0)
-        turns = (new > 0).astype(np.int8) - (old > 0)
-        hit = turns != 0
-        cu, inv = unique(self._stamp.cells(flat[hit]), self._mark)
-        dD = np.bincount(inv, weights=turns[hit], minlength=len(cu)) * (1.0 / (self.f * self.f))
-        return flat, new.astype(COUNT), cu, dD
-
-    def delta(self, chords_out=(), chords_in=()):
-        """Exact change of ``E`` if ``chords_out`` were removed and ``chords_in`` added (nothing changes)."""
-        ch = self._changes(chords_out, chords_in)
-        if ch is None:
-            return 0.0
-        _, _, pix, dD = ch
-        t, w, d0 = self.t[pix], self.w[pix], self.D[pix]
-        return float(np.sum(w * ((t - d0 - dD) ** 2 - (t - d0) ** 2)))
-
-    def apply(self, chords_out=(), chords_in=()):
-        """Remove ``chords_out`` and add ``chords_in``; update the slope on the pixels they touch.
-
-        Returns
-        -------
-        float
-            The exact change of ``E`` (as :meth:`delta` would have said).
-        """
-        ch = self._changes(chords_out, chords_in)
-        if ch is None:
-            return 0.0
-        for chords, sign in ((chords_out, -1), (chords_in, 1)):
-            for a, b in chords:
-                self.uses[a, b] += sign
-                if a != b:
-                    self.uses[b, a] += sign
-        flat, new, pix, dD = ch
-        self.C[flat] = new
-        if not len(pix):
-            return 0.0
-        t, w = self.t[pix], self.w[pix]
-        d0 = self.D[pix]
-        d = d0 + dD
-        self.D[pix] = d
-        # E's change for a thread covering c of a pixel, which falls on its uncovered part: it adds
-        # c (1 - D); -2 w (t - D) (1 - D) c + w (1 - D)^2 c^2, per unit of coverage of a thread whose own
-        # c^2 / c is 2 kappa: 2 w (1 - D) ((t - D) - kappa (1 - D))
-        r, left = t - d, 1.0 - d
-        self.g[pix] = w * left * (r - self.kappa * left)
-        if self.eye is not None:
-            self._eye_take(pix, dD)
-        return float(np.sum(w * (r * r - (t - d0) ** 2)))
-
-    def slope(self):
-        """The slope field ``w (1 - D) ((t - D) - kappa (1 - D))``, flat float32 (a view: do not modify)."""
-        return self.g
-
-    # -- the error as the eye sees it (lines="auto") ---------------------------------------------------------
-
-    def _eye_grid(self, target, weights):
-        """The error as the eye sees it on a grid of :data:`EYE_GRID` px at most: each working pixel in one
-        of its cells, the cell the mean of its pixels, blurred by the scorer's sigma (its figure is the
-        scorer's within 0.01 on the peers' plans: docs/planner.md)."""
-        from .eye import EYE_SIGMA, EyeError
-
-        m = self.size
-        me = min(EYE_GRID, m)
-        rc = (np.arange(m) * me) // m
-        self._ecell = (rc[:, None] * me + rc[None, :]).ravel()
-        n = np.bincount(self._ecell, minlength=me * me).astype(np.float64)
-        self._eshare = 1.0 / n[self._ecell]  # a pixel's share of its cell
-        area = np.bincount(self._ecell, weights=self.w, minlength=me * me) / n
-        te = np.bincount(self._ecell, weights=self.w * self.t, minlength=me * me) / np.maximum(area * n, 1e-12)
-        self.eye = eye = EyeError(te.reshape(me, me), area.reshape(me, me), sigma=EYE_SIGMA * me)
-        self._emark = np.zeros(me * me, dtype=np.int64)
-        self._eu = np.zeros(eye.P * eye.P)  # s (1 - D) on the eye's padded grid
-        self._eu[eye.pidx] = eye.s
-        self.eye_slope = self._eu * eye.G  # how much one more thread's coverage lowers the eye's error (/ 2)
-
-    def _eye_take(self, pix, dD):
-        cu, inv = unique(self._ecell[pix], self._emark)
-        eye = self.eye
-        eye.take(cu, np.bincount(inv, weights=dD * self._eshare[pix], minlength=len(cu)))
-        self._eu[eye.pidx[cu]] = eye.s[cu] * (1.0 - eye.D[cu])
-        np.multiply(self._eu, eye.G, out=self.eye_slope)
-
-    def eye_error(self):
-        """The error as the eye sees it (on :attr:`eye`'s grid), or None without it."""
-        return None if self.eye is None else self.eye.error()
-
-
-def fresh(scores, uses):
-    """``scores`` of chords, ``-inf`` for those drawn already (``uses > 0``): a copy lies on the first
-    and adds nothing, so it is never the one to draw."""
-    return np.where(uses > 0, -np.inf, scores)
+#: Points per frame side at which the choice samples each chord: a plan with a line count is judged pixel by
+#: pixel at the working size (every pixel at 401 px); the first draft of a plan to be polished needs half as
+#: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
+#: 0.1-0.2 s less, as-woven error within 1 % (docs/planner.md, "Speed").
+CHOOSE_POINTS, CHOOSE_POINTS_POLISHED = 400, 200
 
 
 def best_start(canvas, space, pin_lines):
@@ -386,3 +163,96 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
                  len(seq) - best_len, best_len - 1)
         seq = seq[:best_len]
     return seq
+
+
+def run(job):
+    """``--method residual`` through the methods' contract (:mod:`stringbot.planner.methods`): the residual
+    choice under the thread model, then the refinement (a line count) or the polish (``lines="auto"``)."""
+    k = job.knobs
+    seq, stats, drawings = _plan(job.space, job.picture, job.mask, job.weights, job.lines, job.model,
+                                 start_pin=job.start_pin, refine=k["refine"], polish=k["polish"], preview=k["preview"])
+    params = {"refine": k["refine"], "polish": k["polish"], "thread_px": round(job.model.width_px(k["size"]), 4)}
+    return Outcome(seq, params, stats, drawings=drawings)
+
+
+def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None):
+    """The residual choice under the thread model, then refinement and polish: ``(seq, stats, drawings)``."""
+    from .polish import polish_plan
+    from .refine import refine_sequence
+
+    size = pic.gray.shape[0]
+    target = np.where(mask, 1.0 - pic.gray / 255.0, 0.0)
+    if float(target.max(initial=0.0)) < 1.0 / 255:
+        raise BadInput("residual found nothing to draw: the picture is blank inside the frame; "
+                       "expected a picture with some dark parts")
+    w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
+    canvas = Canvas(target, w, space.pin_xy, model.width_px(size), eye=lines == "auto")
+    # points about every 1/400 of the frame along each chord (at 801 px every other pixel: the mean
+    # residual along a chord needs no more, and this halves the work of large sizes); every 1/200 for
+    # a plan to be polished (see CHOOSE_POINTS_POLISHED)
+    points = CHOOSE_POINTS_POLISHED if polish else CHOOSE_POINTS
+    pin_lines = _PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / points))
+    helper = None
+    if polish:
+        from .woven_helper import WovenHelper, two_cores
+
+        if two_cores():  # a helper process draws the polish's canvas while the threads are chosen
+            from .woven_helper import TwinDrawing
+
+            drawing = None if preview is None else TwinDrawing(preview, model)
+            helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing,
+                                 patience=PATIENCE)
+    try:
+        t = time.perf_counter()
+        seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines,
+                                on_chord=None if helper is None else helper.add)
+        t_choose = time.perf_counter() - t
+        # more lines than a run that stopped itself can keep (it keeps PATIENCE fewer than it chose)
+        capped = lines == "auto" and len(seq) - 1 > MAX_AUTO - PATIENCE
+        err = canvas.error()
+        eye, canvas.eye = canvas.eye, None  # the stop is made: the refinement needs the pixel error only
+        report("refining")
+        seq, rs = refine_sequence(canvas, seq, pin_lines, budget=refine, remove=lines == "auto")
+        area = float(w.sum())
+        out = {"choose_seconds": round(t_choose, 3), "refine_seconds": round(time.perf_counter() - t - t_choose, 3),
+               "refine": rs, "model_rms_before_refine": round(float(np.sqrt(err / area)), 5),
+               "model_rms": round(float(np.sqrt(canvas.error() / area)), 5)}
+        if eye is not None:  # the stop's figure: the error as the eye sees it, before the polish
+            out["eye_rms"] = round(float(np.sqrt(eye.error() / max(float(np.sum(eye.s ** 2)), 1e-12))), 5)
+        if capped:
+            out["line_cap"] = MAX_AUTO
+            log.info("residual: stopped at the line cap of %d lines, not because the picture was matched", MAX_AUTO)
+        del canvas, pin_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
+        if not polish:
+            return seq, out, None
+        t = time.perf_counter()
+        report("polishing")
+        done = None if helper is None else helper.finish(seq, polish)
+        out["polish_processes"] = 1 if done is None else 2
+        drawings = None if done is None else helper.drawing
+        if done is None:
+            woven = woven_canvas(target, w, space, model)
+            woven.build(list(zip(seq[:-1], seq[1:])))
+            done = polish_plan(woven, seq, space, budget=polish)
+        seq, ps = done
+        out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
+        return seq, out, drawings
+    finally:
+        if helper is not None:
+            helper.close()
+
+
+def woven_canvas(target, w, space, model):
+    """The polish's canvas for a picture at the working size: the error on a grid of
+    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there)."""
+    from ..model.chords import frame_mask
+    from ..picture.resample import resize_square
+    from .woven import GRID, WovenCanvas
+
+    size = target.shape[0]
+    m = min(GRID, size)
+    if m != size:
+        target = resize_square(target, m)
+        w = resize_square(w, m)
+    inside = frame_mask(m, space.frame)
+    return WovenCanvas(np.where(inside, target, 0.0), np.where(inside, w, 0.0), space.pin_xy, model.width_px(m))

@@ -25,7 +25,7 @@ import logging
 import numpy as np
 
 from .eye import EYE_SIGMA, EyeError
-from .residual import fresh, sum_sparse
+from .canvas import fresh, sum_sparse
 from ..model.scoring import WOVEN_SIZE
 from ..model.union import COUNT, UnionStamp, fine_per_pixel, unique
 
@@ -248,7 +248,7 @@ class WovenCanvas(EyeError):
 
     def scores(self, pin_lines, a):
         """``(others, score)``: the mean of ``u G`` along each chord from pin ``a`` (its error slope),
-        ``-inf`` for a chord drawn already (a copy adds nothing: :func:`~stringbot.planner.methods.residual.fresh`).
+        ``-inf`` for a chord drawn already (a copy adds nothing: :func:`~stringbot.planner.methods.canvas.fresh`).
 
         ``pin_lines`` should not keep its points (``keep=False``): they are kept here, on the padded grid.
         """

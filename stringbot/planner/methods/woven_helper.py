@@ -295,9 +295,13 @@ class WovenHelper:
         The pins (the helper lays out the polish's chord points while it waits for chords).
     drawing : TwinDrawing, optional
         The preview the twin draws (then the polish's canvas is not sent back).
+    patience : int
+        How many of the last chords chosen an automatic run may still cut back
+        (:data:`~stringbot.planner.methods.residual.PATIENCE`): the helper draws those before them
+        while it waits.
     """
 
-    def __init__(self, make_canvas, space, *, drawing=None):
+    def __init__(self, make_canvas, space, *, patience, drawing=None):
         from multiprocessing.connection import Pipe
 
         self._conn, child = Pipe()
@@ -307,7 +311,7 @@ class WovenHelper:
 
         def serve():  # pragma: no cover - runs in the child
             self._conn.close()
-            _serve(child, make_canvas, space, drawing)
+            _serve(child, make_canvas, space, drawing, patience)
 
         self.pid = _fork(serve)
         child.close()
@@ -369,11 +373,10 @@ class WovenHelper:
             self.pid = None
 
 
-def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs in the child
+def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - runs in the child
     """The helper: stamp chords as they come, and in between lay out the polish's chord points and
     find the drawn chords' grid pixels; polish on ``("polish", seq, budget, sent)``."""
     from .polish import polish_lines, polish_plan
-    from .residual import PATIENCE
 
     canvas = make_canvas()
     lines = polish_lines(space, canvas)
@@ -405,9 +408,9 @@ def _serve(conn, make_canvas, space, drawing=None):  # pragma: no cover - runs i
             for a, b in msg[1].tolist():
                 canvas.stamped(a, b)
                 chosen.append((a, b))
-            # a chord more than PATIENCE back is in the plan (an automatic run is cut back by fewer):
+            # a chord more than patience back is in the plan (an automatic run is cut back by fewer):
             # drawn now, in the plan's order, as a fresh build would
-            upto = max(drawn, len(chosen) - PATIENCE)
+            upto = max(drawn, len(chosen) - patience)
             canvas.draw(chosen[drawn:upto])
             drawn = upto
         elif msg[0] == "polish":

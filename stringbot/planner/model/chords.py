@@ -27,7 +27,7 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 __all__ = ["pin_positions", "ChordSpace", "chord_space", "chord_pixels", "pixel_chords", "cache_dir",
-           "neighbour_offsets", "line_pixels"]
+           "neighbour_offsets", "line_pixels", "frame_mask", "thread_length"]
 
 FRAMES = ("circle", "square")
 _CACHE_VERSION = 1
@@ -64,6 +64,28 @@ def pin_positions(pins, frame="circle"):
     x = np.select([side == 0, side == 1, side == 2, side == 3], [t, np.ones_like(t), 1 - t, np.zeros_like(t)])
     y = np.select([side == 0, side == 1, side == 2, side == 3], [np.zeros_like(t), t, np.ones_like(t), 1 - t])
     return np.stack([x, y], axis=1)
+
+
+def frame_mask(size, frame):
+    """Pixels inside the frame.
+
+    Returns
+    -------
+    ndarray of bool, shape (size, size)
+    """
+    if frame == "square":
+        return np.ones((size, size), dtype=bool)
+    c = (size - 1) / 2.0
+    yy, xx = np.ogrid[:size, :size]
+    return (yy - c) ** 2 + (xx - c) ** 2 <= (c + 0.5) ** 2
+
+
+def thread_length(pin_xy, chords):
+    """Total chord length in ring diameters (the side for a square frame)."""
+    if not len(chords):
+        return 0.0
+    c = np.asarray(chords)
+    return float(np.linalg.norm(pin_xy[c[:, 0]] - pin_xy[c[:, 1]], axis=1).sum())
 
 
 def pin_pixels(pin_xy, size):

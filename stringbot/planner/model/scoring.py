@@ -76,7 +76,7 @@ def ssim_pair(a, b, *, blur_sigma=BLUR_SIGMA):
 
 def _framed(gray, frame):
     """A picture's crop in [0, 1], white outside a circular frame."""
-    from ..methods.fitness import frame_mask
+    from .chords import frame_mask
 
     g = np.asarray(gray, dtype=np.float64) / 255.0
     return np.where(frame_mask(g.shape[0], frame), g, 1.0)
@@ -134,7 +134,7 @@ def blurred_rms(a, b, *, frame, sigma=WOVEN_SIGMA):
     with ``sigma`` pixels (the as-woven error's comparison)."""
     from scipy.ndimage import gaussian_filter
 
-    from ..methods.fitness import frame_mask
+    from .chords import frame_mask
 
     a, b = (gaussian_filter(np.asarray(x, dtype=np.float64), sigma) for x in (a, b))
     d = a - b

@@ -19,7 +19,7 @@ mean gray and 0.005-0.013 rms (docs/planner.md, "The planner's thread
 model"; ``benchmarks/bench_model_agreement.py``).
 
 :class:`UnionStamp` gives a thread's samples and the pixels they fall in;
-the chooser (:class:`~stringbot.planner.methods.residual.Canvas`) and the polish
+the chooser (:class:`~stringbot.planner.methods.canvas.Canvas`) and the polish
 (:class:`~stringbot.planner.methods.woven.WovenCanvas`) keep the counts.
 """
 
