@@ -22,13 +22,12 @@ reboot or a power loss wipes the position, so it reads 0 wherever the axes stand
 sets belief = physical.
 """
 
-import enum
 import logging
 
 from ..grbl import UNLOCK_MESSAGE
 from .gcode_base import EPS, GcodeFirmware, Power, physical_home
 from .grbl_parser import GrblError, GrblParser, fmt
-from .grbl_system import GRBL, GRBLHAL, build_steps, default_settings, format_settings, store_setting
+from .grbl_system import GRBL, GRBLHAL, GrblState, build_steps, default_settings, format_settings, store_setting
 
 __all__ = ["GrblState", "GrblEmulator", "GrblHalEmulator", "physical_home", "Power"]
 
@@ -37,17 +36,6 @@ log = logging.getLogger(__name__)
 _EPS = EPS
 #: GRBL's ``delay_ms(500)`` after printing an alarm: the main loop is stopped that long.
 ALARM_PAUSE_SECONDS = 0.5
-
-
-class GrblState(enum.Enum):
-    IDLE = "Idle"
-    RUN = "Run"
-    HOLD = "Hold"
-    JOG = "Jog"
-    ALARM = "Alarm"
-    HOME = "Home"
-    CHECK = "Check"
-    SLEEP = "Sleep"
 
 
 def clean_line(raw, limit):

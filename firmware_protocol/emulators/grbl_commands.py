@@ -8,6 +8,7 @@ the emulator's main loop runs (see :class:`~.grbl.GrblEmulator`).
 """
 
 from .grbl_parser import GrblError, fmt
+from .grbl_system import GrblState
 
 __all__ = ["system_command"]
 
@@ -15,7 +16,6 @@ HELP = "[HLP:$$ $# $G $I $N $x=val $Nx=line $J=line $SLP $C $X $H ~ ! ? ctrl-x]"
 
 
 def system_command(emu, text):
-    from .grbl import GrblState
     st = emu.state
     if text == "$":
         emu._emit(HELP)
@@ -115,7 +115,6 @@ def _setting(emu, text):
 
 
 def _check_mode(emu):
-    from .grbl import GrblState
     if emu.state is GrblState.CHECK:
         emu._emit("[MSG:Disabled]")
 

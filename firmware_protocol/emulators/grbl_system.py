@@ -1,4 +1,4 @@
-"""GRBL's EEPROM settings (``$$``, ``$x=val``) and the text of its reports.
+"""GRBL's states, its EEPROM settings (``$$``, ``$x=val``) and the text of its reports.
 
 The settings table follows GRBL 1.1's ``settings.md`` (and grblHAL's
 ``$376`` rotary axes, ``$538`` rotary wrap); the simulated machine fills in
@@ -7,9 +7,24 @@ homing, the rotary ring axis) and keeps GRBL's defaults for the rest.  Settings 
 cycles, as GRBL's EEPROM does.
 """
 
+import enum
+
 from .grbl_parser import fmt
 
-__all__ = ["Variant", "GRBL", "GRBLHAL", "default_settings", "format_settings", "store_setting", "build_steps"]
+__all__ = ["GrblState", "Variant", "GRBL", "GRBLHAL", "default_settings", "format_settings", "store_setting", "build_steps"]
+
+
+class GrblState(enum.Enum):
+    """What ``?`` reports the machine doing."""
+
+    IDLE = "Idle"
+    RUN = "Run"
+    HOLD = "Hold"
+    JOG = "Jog"
+    ALARM = "Alarm"
+    HOME = "Home"
+    CHECK = "Check"
+    SLEEP = "Sleep"
 
 
 class Variant:

@@ -25,7 +25,7 @@ import re
 
 from ..errors import BadInput, Interrupted
 from ..motion.safety import gap_offset_deg
-from .locate import side_of
+from .locate import Found, continue_point, side_of
 
 __all__ = ["guide_to_reference", "bring_head_in", "jog_loop", "crossings", "parse_jog", "JOG_HELP"]
 
@@ -122,8 +122,7 @@ def _near_angle(a, b, tol):
 
 def guide_to_reference(rec, why):
     """Run the guide for recovery ``rec`` (:class:`~stringbot.winding.recover.GcodeRecovery`);
-    returns a :class:`~stringbot.winding.recover.Found`."""
-    from .recover import Found, continue_point
+    returns a :class:`~stringbot.winding.locate.Found`."""
     sit, machine, link, op = rec.sit, rec.machine, rec.link, rec.op
     pitch, h_in = machine.pitch_deg, machine["head.in_mm"]
     pin = sit.pin

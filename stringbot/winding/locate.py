@@ -1,4 +1,4 @@
-"""Where on the journal's path a machine stands: tolerances, path segments, sides.
+"""Where on the journal's path a machine stands: tolerances, path segments, sides; where the job goes on.
 
 The journal leaves a job at (step, move); the machine stands at the end of the
 last executed move or on the straight segment of the next one or two.
@@ -7,9 +7,11 @@ last executed move or on the straight segment of the next one or two.
 machine file).
 """
 
+from dataclasses import dataclass
+
 from ..motion.positions import position_tolerance
 
-__all__ = ["TOL", "tolerance", "locate", "start_point", "side_of"]
+__all__ = ["TOL", "tolerance", "locate", "start_point", "side_of", "Found", "continue_point"]
 
 TOL = 0.01       # the least tolerance (degrees / mm) whatever the machine
 
@@ -92,3 +94,24 @@ def _side(machine, head_mm):
     return "out" if abs(head_mm - h_out) < abs(head_mm - h_in) else "in"
 
 
+@dataclass
+class Found:
+    """Where the machine stands and where the job goes on."""
+
+    here: tuple                 # (ring_deg, head_mm), job coordinates, as the firmware now knows it
+    where: tuple                # (step, move) to continue with
+    lost: bool                  # the firmware had lost its position (or restarted)
+    how: str                    # how the position was found, for the journal and the log
+    on_path: bool = True        # ``here`` lies on the journal's path (else: a ring move with the head IN follows)
+    approach: bool = False      # before the first hook: the first moves (head IN, ring to the start) follow
+
+
+def continue_point(sit, *, hooked):
+    """(step, move) to go on from, with the head IN somewhere on the ring: the next step when
+    the interrupted step's pin is hooked, else the interrupted step from its approach (a ring
+    move with the head IN: safe from anywhere)."""
+    if sit.s >= len(sit.steps):
+        return (len(sit.steps), 0)
+    if hooked:
+        return (sit.s + 1, 0)
+    return (sit.s, min(sit.m, sit.approach))

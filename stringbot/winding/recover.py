@@ -44,27 +44,14 @@ sequence of refusals leaves the machine where no command can get it back.
 """
 
 import logging
-from dataclasses import dataclass
 
 from ..errors import BadInput, Interrupted, MachineFailure
 from ..motion.safety import gap_offset_deg
-from .locate import _near, _on_segment, _point, locate, side_of, start_point, tolerance
+from .locate import Found, _near, _on_segment, _point, continue_point, locate, side_of, start_point, tolerance
 
-__all__ = ["Found", "recover_gcode", "Situation", "continue_point"]
+__all__ = ["recover_gcode", "Situation"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class Found:
-    """Where the machine stands and where the job goes on."""
-
-    here: tuple                 # (ring_deg, head_mm), job coordinates, as the firmware now knows it
-    where: tuple                # (step, move) to continue with
-    lost: bool                  # the firmware had lost its position (or restarted)
-    how: str                    # how the position was found, for the journal and the log
-    on_path: bool = True        # ``here`` lies on the journal's path (else: a ring move with the head IN follows)
-    approach: bool = False      # before the first hook: the first moves (head IN, ring to the start) follow
 
 
 class Situation:
@@ -117,17 +104,6 @@ class Situation:
         what = ("turning the ring" if not self.ring_known else
                 "moving the head" if self.side is None else "standing")
         return f"{what} (pin {self.pin}, step {self.s + 1}, move {self.m + 1})"
-
-
-def continue_point(sit, *, hooked):
-    """(step, move) to go on from, with the head IN somewhere on the ring: the next step when
-    the interrupted step's pin is hooked, else the interrupted step from its approach (a ring
-    move with the head IN: safe from anywhere)."""
-    if sit.s >= len(sit.steps):
-        return (len(sit.steps), 0)
-    if hooked:
-        return (sit.s + 1, 0)
-    return (sit.s, min(sit.m, sit.approach))
 
 
 def _epoch_facts(state):

@@ -34,9 +34,9 @@ import math
 from ..errors import BadInput, MachineFailure
 from ..links import open_link
 from .approach import approach
-from .locate import TOL, _near, _point, _side, locate, start_point, tolerance  # noqa: F401
+from .locate import TOL, Found, _near, _point, _side, locate, start_point, tolerance  # noqa: F401
 from .operator import Operator
-from .recover import Found, recover_gcode
+from .recover import recover_gcode
 from .journal import Journal, read_journal
 from .loop import Winder
 
