@@ -35,7 +35,7 @@ def sheet_cmd(machine, output, template, paper, force):
     from ..motion import estimate, format_duration
     from ..motion.calibration_sheet import sheet_pdf, sheet_svg
     from ..planner.calibration.sheet import design_sheet, sheet_plan
-    from .planning import _refuse_a_wound_plan
+    from .plan_checks import refuse_a_wound_plan
 
     template = template or os.path.splitext(output)[0] + ".pdf"
     ext = os.path.splitext(template)[1].lower()
@@ -46,7 +46,7 @@ def sheet_cmd(machine, output, template, paper, force):
     check_output_path(template, what="template")
     check_not_same_file(template, output, what="template", source_what="sheet")
     if not force:
-        _refuse_a_wound_plan(output)
+        refuse_a_wound_plan(output)
     m = load_machine(machine)
     thread = m["thread.diameter_mm"]
     sheet = design_sheet(pins=m.pins, diameter_mm=m["ring.diameter_mm"], pin_diameter_mm=m["ring.pin_diameter_mm"],
