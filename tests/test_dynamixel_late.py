@@ -73,7 +73,8 @@ def test_a_fault_at_move_n_strikes_move_n_however_often_the_host_retries():
     (the head OUT) as on an idle computer, and the resume from the stop record is exact (it counted
     every retried write as a move: ``power@39`` struck the head's move of step 4, not step 9's turn)."""
     from stringbot.motion import hook_steps
-    from test_dynamixel_wind import PLANS, make_plan, resume
+    from dynamixel_helpers import PLANS, resume
+    from test_gcode_replay import make_plan
 
     machine = load_machine("dynamixel-ring")
     world = World(machine)
