@@ -80,10 +80,10 @@ def _work():
 
 @lru_cache(maxsize=None)
 def _points(machine, _sha, plan_path, seed):
-    import bench_fault_matrix as fm
+    import matrix_cases as mc
 
-    table = fm.line_table(Path(plan_path), machine)
-    found = fm.fault_points(table, machine, random.Random(seed), list(POINTS))
+    table = mc.line_table(Path(plan_path), machine)
+    found = mc.fault_points(table, machine, random.Random(seed), list(POINTS))
     missing = [p for p, n in found.items() if n is None]
     if missing:
         raise AssertionError(f"{machine}: the plan has no {', '.join(missing)} move to strike")

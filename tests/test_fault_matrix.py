@@ -22,6 +22,7 @@ from test_wind_sim import small_plan
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import bench_fault_matrix as fm  # noqa: E402
+import matrix_cases as mc  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -35,9 +36,9 @@ def tiny(tmp_path_factory):
 
     def points(machine, wanted):
         if machine not in cache:
-            cache[machine] = fm.line_table(plan_for(machine), machine)
+            cache[machine] = mc.line_table(plan_for(machine), machine)
         import random
-        return fm.fault_points(cache[machine], machine, random.Random(1), wanted)
+        return mc.fault_points(cache[machine], machine, random.Random(1), wanted)
     return work, plan, points, plan_for
 
 
@@ -58,7 +59,7 @@ def _explain(r):
 ])
 def test_a_line_fault_then_resume_winds_the_plan_exactly(tiny, machine, kind, point):
     n = tiny[2](machine, [point])[point]
-    r = _run(tiny, fm.Case(machine, machine, kind, f"{kind}@{n}", point))
+    r = _run(tiny, mc.Case(machine, machine, kind, f"{kind}@{n}", point))
     assert r["outcome"] == "exact", _explain(r)
 
 
@@ -68,7 +69,7 @@ def test_a_line_fault_then_resume_winds_the_plan_exactly(tiny, machine, kind, po
 ])
 def test_a_fault_in_the_middle_of_a_move_then_resume_winds_the_plan_exactly(tiny, machine, kind, point):
     n = tiny[2](machine, [point])[point]
-    r = _run(tiny, fm.Case(machine, machine, f"{kind}+0.5", f"{kind}@{n}+0.5", point))
+    r = _run(tiny, mc.Case(machine, machine, f"{kind}+0.5", f"{kind}@{n}+0.5", point))
     assert r["outcome"] == "exact", _explain(r)
     if machine == "grbl-ring":
         assert any("--yes" not in entry.split("\n")[0] for entry in r["log"]), "the guided way was not taken"
@@ -81,9 +82,9 @@ def test_every_bundled_machine_loses_power_mid_hook_then_resumes_exactly(tiny, m
     its position lost -- then resumes as its user would until the world is the plan."""
     if machine in GCODE_MACHINES:
         n = tiny[2](machine, ["hook"])["hook"]
-        case = fm.Case(machine, machine, "power+0.5", f"power@{n}+0.5", "hook")
+        case = mc.Case(machine, machine, "power+0.5", f"power@{n}+0.5", "hook")
     else:                 # a servo bus counts moves (4 a step: approach, out, the pitch turn, in)
-        case = fm.Case(machine, machine, "power", f"power@{4 * (len(tiny[1].sequence) // 2) + 3}", "hook")
+        case = mc.Case(machine, machine, "power", f"power@{4 * (len(tiny[1].sequence) // 2) + 3}", "hook")
     r = _run(tiny, case)
     assert r["outcome"] == "exact", _explain(r)
     assert r["stops"] >= 1, "the fault did not stop the winding"
@@ -93,14 +94,14 @@ def test_ctrl_c_then_a_board_that_reboots_when_its_port_opens_resumes_exactly(ti
     """Issue 15: Ctrl-C, then the resume's open reboots the board (an Uno).  On Marlin a G92 of the
     held position would shift its software endstops (the head could no longer go OUT): it re-homes."""
     import signal
-    uno = fm.uno_machine(tiny[0], "marlin-ring")
-    r = _run(tiny, fm.Case(uno, "marlin-ring", "uno-int", point="Ctrl-C", signal=signal.SIGINT, kills=[3]))
+    uno = mc.uno_machine(tiny[0], "marlin-ring")
+    r = _run(tiny, mc.Case(uno, "marlin-ring", "uno-int", point="Ctrl-C", signal=signal.SIGINT, kills=[3]))
     assert r["outcome"] == "exact", _explain(r)
     assert r["stops"] == 1 and "-> 130" in r["log"][0]
 
 
 def test_the_simulator_killed_stops_the_host_with_the_resume_and_no_pin_it_did_not_see(tiny):
-    r = _run(tiny, fm.Case("grbl-ring", "grbl-ring", "sim-kill", point="1 kill", sim_kill=4))
+    r = _run(tiny, mc.Case("grbl-ring", "grbl-ring", "sim-kill", point="1 kill", sim_kill=4))
     assert r["outcome"] == "refused", _explain(r)
     assert "--resume" in r["why"]
 
@@ -109,10 +110,10 @@ def test_the_simulator_killed_stops_the_host_with_the_resume_and_no_pin_it_did_n
 @pytest.mark.timeout(3600)
 def test_a_reduced_matrix_is_never_silently_wrong_and_never_hangs(tmp_path):
     """Every machine, every kind, two points each (one with the head OUT), a 20-line plan."""
-    kinds = (fm.LINE_KINDS + [f"{k}+0.5" for k in fm.MID_KINDS] + [f"uno-{k}" for k in fm.UNO_KINDS]
+    kinds = (mc.LINE_KINDS + [f"{k}+0.5" for k in mc.MID_KINDS] + [f"uno-{k}" for k in mc.UNO_KINDS]
              + ["dynamixel", "host-kill", "host-int", "sim-kill"])
-    cases, plans = fm.build_cases(tmp_path, fm.GCODE + fm.SERVO, kinds, 2, 3, 11,
-                                  lambda name: fm.make_plan(tmp_path, name, 20))
+    cases, plans = mc.build_cases(tmp_path, mc.GCODE + mc.SERVO, kinds, 2, 3, 11,
+                                  lambda name: mc.make_plan(tmp_path, name, 20))
     results = fm.run_matrix(cases, plans, tmp_path, workers=2, timeout=120.0)
     table = "\n".join(fm.table_lines(results))
     bad = [f"{r['case']}: {r['outcome']}: {r['why']}" for r in results if r["outcome"] in ("silent", "hung")]

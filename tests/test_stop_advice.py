@@ -21,8 +21,8 @@ from planner_helpers import plan_files
 from test_wind_sim import small_plan
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import bench_fault_matrix as fm  # noqa: E402
-from matrix_user import STRINGBOT, Simulator, run_guided, run_host, type_lines, wait_event  # noqa: E402
+import matrix_cases as mc  # noqa: E402
+from matrix_user import STRINGBOT, Simulator, displacement, run_guided, run_host, type_lines, wait_event  # noqa: E402
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -39,8 +39,8 @@ def tiny(tmp_path_factory):
     def first(machine):
         """{"home": line, "first": line, "ring": [lines of ring moves with the head IN]}"""
         if machine not in cache:
-            table = fm.line_table(plan_for(machine), machine)
-            cache[machine] = fm.first_points(table, machine)
+            table = mc.line_table(plan_for(machine), machine)
+            cache[machine] = mc.first_points(table, machine)
             ring_ax = "X" if machine == "grbl-ring" else "A"
             cache[machine]["ring"] = [n for n, text, side in table if side == "in" and text.startswith("G1 ")
                                       and text.split()[1][0] == ring_ax]
@@ -153,7 +153,7 @@ def test_the_position_lost_in_the_first_ring_move_names_resume_and_refuses_a_new
 def test_a_stop_while_homing_or_in_the_first_move_resumes_exactly(tiny, tmp_path, machine_name, kind, point):
     """The ring was left turned (the head IN) by a person, so homing moves it; the fault strikes half
     way through homing, or through the first ring move after it."""
-    lines = fm.displacement(machine_name, "ring")
+    lines = displacement(machine_name, "ring")
     # the typed lines are counted too, and a GRBL that vouches for its position is asked for its
     # work offset ($#) before homing (the probe's fresh one could not vouch)
     n = tiny[2](machine_name)[point] + len(lines) + (machine_name != "marlin-ring")
@@ -179,7 +179,7 @@ def test_homing_from_the_head_out_at_a_pin_is_refused_then_guided_in_exactly(tin
     (tmp_path / "m").mkdir()
     m = Machine(tmp_path / "m", tiny, "grblhal-ring")
     try:
-        type_lines(m.pty, fm.displacement("grblhal-ring", "out-pin"))
+        type_lines(m.pty, displacement("grblhal-ring", "out-pin"))
         before = m.world()
         assert before["head_side"] == "out"
         rc, line, _ = m.wind()
@@ -200,7 +200,7 @@ def test_homing_from_the_head_out_at_a_pin_is_refused_then_guided_in_exactly(tin
 def test_homing_where_the_firmware_cannot_say_asks_the_operator_never_yes(tiny, tmp_path, machine_name, power):
     """Marlin never knows its position before homing; a grblHAL whose power went after it was moved
     off its start does not either: --yes does not answer, the operator does (here: guided)."""
-    lines = fm.displacement(machine_name, "out-pin")
+    lines = displacement(machine_name, "out-pin")
     (tmp_path / "m").mkdir()
     m = Machine(tmp_path / "m", tiny, machine_name, f"power@{len(lines) + 1}" if power else "")
     try:
@@ -223,7 +223,7 @@ def test_a_start_with_the_head_out_at_a_pin_without_switches_is_guided_in_exactl
     (tmp_path / "m").mkdir()
     m = Machine(tmp_path / "m", tiny, "grbl-ring")
     try:
-        type_lines(m.pty, fm.displacement("grbl-ring", "out-pin"))
+        type_lines(m.pty, displacement("grbl-ring", "out-pin"))
         rc, line, _ = m.wind()
         assert rc == 1 and "reports the head OUT" in line and "without --yes" in line
         assert "nothing was wound yet" in line
@@ -238,7 +238,7 @@ def test_quitting_the_guide_at_the_start_names_resume_which_guides_again(tiny, t
     (tmp_path / "m").mkdir()
     m = Machine(tmp_path / "m", tiny, "grbl-ring")
     try:
-        type_lines(m.pty, fm.displacement("grbl-ring", "out-pin"))
+        type_lines(m.pty, displacement("grbl-ring", "out-pin"))
         rc, err = m.guided(answers="y\nring -0.2\nquit\n")    # tied on; one jog, then the operator stops
         line = last_error(err)
         assert rc == 130 and "while bringing the head IN" in line and line.endswith("--resume")
