@@ -85,8 +85,8 @@ def per_channel(pic_path, plan):
     from stringbot.planner.colour import unmix
     from stringbot.planner.colour_render import SCORE_SIZE, colour_score
     from stringbot.planner.model.chords import frame_mask
-    from stringbot.planner.picture.read import Picture, read_picture
     from stringbot.planner.palette import hex_to_rgb, to_linear
+    from stringbot.planner.picture.read import Picture, read_picture
 
     size = plan.parameters["size"]
     pic = read_picture(pic_path, size=size, crop=plan.crop, gray="luminance")

@@ -128,9 +128,9 @@ def main():
     from quality_table import peer_plan
 
     from stringbot.planner.model.chords import frame_mask
-    from stringbot.planner.picture.read import read_picture
     from stringbot.planner.model.reference import reference_gray
     from stringbot.planner.model.scoring import LUMINANCE, WOVEN_SIZE
+    from stringbot.planner.picture.read import read_picture
 
     images = Path(opts.images)
     names = sorted(p.stem for p in images.iterdir() if p.suffix.lower() == ".png")

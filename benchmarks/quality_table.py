@@ -75,8 +75,8 @@ def sheet_tile(plan, side):
 
 def source_tile(image, crop, side):
     from stringbot.planner.model.chords import frame_mask
-    from stringbot.planner.picture.read import read_picture
     from stringbot.planner.model.scoring import LUMINANCE
+    from stringbot.planner.picture.read import read_picture
 
     g = read_picture(image, size=side, crop=crop, gray="luminance", weights=LUMINANCE).gray / 255.0
     return np.where(frame_mask(side, "circle"), g, 1.0)

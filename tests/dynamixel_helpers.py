@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from bundled import PATIENT_GRACE_MS
-from stringbot.links.dynamixel import DynamixelLink
 from firmware_protocol.machine import load_machine
+from stringbot.links.dynamixel import DynamixelLink
 
 
 @pytest.fixture

@@ -9,14 +9,13 @@ import pytest
 from stringbot.errors import BadInput
 from stringbot.planner.build import plan_picture
 from stringbot.planner.knobs import auto_lines
-from stringbot.planner.model.chords import (chord_pixels, chord_space, line_pixels, pin_positions,
-                                      pixel_chords)
 from stringbot.planner.methods.fitness import solve_fitness
-from stringbot.planner.model.chords import frame_mask, thread_length
 from stringbot.planner.methods.greedy import greedy_sequence
+from stringbot.planner.methods.sampling import _Diffuser, fitness_table, sample_connected, sample_disconnected
+from stringbot.planner.model.chords import (chord_pixels, chord_space, frame_mask, line_pixels, pin_positions,
+                                            pixel_chords, thread_length)
 from stringbot.planner.model.render import draw
 from stringbot.planner.model.scoring import score
-from stringbot.planner.methods.sampling import _Diffuser, fitness_table, sample_connected, sample_disconnected
 
 from planner_helpers import picture
 
@@ -462,7 +461,8 @@ def test_greedy_is_threadtones_loop():
 
 
 def test_threadtone_line_sums_are_isotropic_and_its_band_is_perpendicular():
-    from stringbot.planner.methods.greedy import band_pixels, cv_half_width, line_samples
+    from stringbot.planner.methods.greedy import band_pixels, cv_half_width
+    from stringbot.planner.model.lines import line_samples
     size = 201
     starts, flat = line_samples(10, 10, np.array([10, 190]), np.array([190, 190]), size)
     n = np.diff(np.append(starts, len(flat)))

@@ -7,17 +7,15 @@ import sys
 
 import numpy as np
 import pytest
-from scipy.ndimage import correlate, gaussian_filter
+from scipy.ndimage import correlate
 
 from stringbot.planner.build import plan_picture
-from stringbot.planner.model.chords import chord_space
-from stringbot.planner.model.chords import frame_mask
-from stringbot.planner.methods.greedy import _PinLines
 from stringbot.planner.methods.polish import polish_plan
-from stringbot.planner.picture.resample import resize_square
-from stringbot.planner.model.scoring import woven_error
-from stringbot.planner.model.reference import reference_coverage
 from stringbot.planner.methods.woven import WovenCanvas
+from stringbot.planner.model.chords import chord_space, frame_mask
+from stringbot.planner.model.reference import reference_coverage
+from stringbot.planner.model.scoring import woven_error
+from stringbot.planner.picture.resample import resize_square
 
 from planner_helpers import picture
 

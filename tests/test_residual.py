@@ -5,12 +5,11 @@ import pytest
 
 from stringbot.errors import BadInput
 from stringbot.planner.build import plan_picture
-from stringbot.planner.model.chords import chord_space
-from stringbot.planner.model.chords import frame_mask
-from stringbot.planner.methods.greedy import _PinLines
-from stringbot.planner.methods.refine import refine_sequence
 from stringbot.planner.methods.canvas import Canvas
+from stringbot.planner.methods.refine import refine_sequence
 from stringbot.planner.methods.residual import residual_sequence
+from stringbot.planner.model.chords import chord_space, frame_mask
+from stringbot.planner.model.lines import PinLines
 from stringbot.planner.model.scoring import woven_error
 
 from planner_helpers import picture
@@ -60,7 +59,7 @@ def test_refinement_never_makes_the_picture_worse_and_keeps_one_thread():
     space = chord_space(80)
     for lines, remove in ((150, False), ("auto", True)):
         canvas = canvas_of(g, space)
-        pl = _PinLines(space, g.shape[0], nearest=True)
+        pl = PinLines(space, g.shape[0], nearest=True)
         seq = residual_sequence(canvas, space, lines, pin_lines=pl)
         before = canvas.error()
         out, st = refine_sequence(canvas, seq, pl, budget=len(seq), remove=remove)
@@ -177,7 +176,7 @@ def test_residual_starts_at_an_end_of_its_best_chord_unless_told():
 
     g = disc_picture()
     space = chord_space(80)
-    pl = _PinLines(space, g.shape[0], nearest=True)
+    pl = PinLines(space, g.shape[0], nearest=True)
     canvas = canvas_of(g, space, width_px=0.25 / 500 * g.shape[0])  # the default thread at 101 px
 
     def top(a):

@@ -7,7 +7,7 @@ does this module:
 * From the current pin, each chord's *line sum* is the sum of the picture at
   ``int(hypot(dx, dy))`` points spaced evenly from pin to pin (ThreadTone's
   ``linePixels``: ``np.linspace`` with as many points as the chord is long in
-  pixels).  The count of points is proportional to the chord's length in
+  pixels; :mod:`stringbot.planner.model.lines`).  The count of points is proportional to the chord's length in
   every direction, so a diagonal chord is not under-counted as it would be
   with one point per step of its major axis.  (A point lands on the pixel
   nearest to it; ThreadTone truncates and shifts by one pixel, which only
@@ -33,58 +33,11 @@ import logging
 
 import numpy as np
 
-from ..model.chords import pin_pixels
+from ..model.lines import PinLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["greedy_sequence", "plan_greedy", "line_samples", "band_pixels", "cv_half_width"]
-
-
-def line_samples(r0, c0, r1, c1, size, *, nearest=False, spacing=1.0):
-    """ThreadTone's line points: ``int(hypot)`` points from pin to pin, each on its nearest pixel.
-
-    Parameters
-    ----------
-    r0, c0 : int
-        The start pin's pixel.
-    r1, c1 : ndarray of int, shape (k,)
-        The other pins' pixels.
-    size : int
-    nearest : bool
-        Each point on its nearest pixel; False: truncated, as ThreadTone does.
-    spacing : float
-        ``int(hypot / spacing)`` points (1: ThreadTone's).
-
-    Returns
-    -------
-    starts : ndarray of int64, shape (k,)
-        Offset of each chord's first point in ``flat``.
-    flat : ndarray of int32
-        Flat pixel indices, chord after chord (a pixel may come twice).
-    """
-    r1, c1 = np.asarray(r1, dtype=np.float64), np.asarray(c1, dtype=np.float64)
-    dr, dc = r1 - r0, c1 - c0
-    n = np.maximum((np.hypot(dr, dc) / spacing).astype(np.int64), 1)
-    starts = np.concatenate([[0], np.cumsum(n)[:-1]])
-    # one row per chord, padded to the longest (fewer gathers than repeating per point); the points kept
-    # are, in order, those of np.linspace
-    inv = (1.0 / np.maximum(n - 1, 1)).astype(np.float32)  # linspace: both pins included
-    k = np.arange(int(n.max()), dtype=np.float32)
-    keep = k[None, :] < n[:, None]
-    t = k[None, :] * inv[:, None]
-    rnd = np.rint if nearest else np.floor
-    # float32 is exact enough here: coordinates < 4096, steps of at least 1/4096
-    rr = t * dr.astype(np.float32)[:, None]
-    rr += np.float32(r0)
-    rnd(rr, out=rr)
-    cc = t * dc.astype(np.float32)[:, None]
-    cc += np.float32(c0)
-    rnd(cc, out=cc)
-    np.clip(rr, 0, size - 1, out=rr)
-    np.clip(cc, 0, size - 1, out=cc)
-    rr *= size
-    rr += cc
-    return starts, rr[keep].astype(np.int32)
+__all__ = ["greedy_sequence", "plan_greedy", "band_pixels", "cv_half_width"]
 
 
 def cv_half_width(thickness):
@@ -136,41 +89,6 @@ def band_pixels(r0, c0, r1, c1, size, half):
     return flat
 
 
-class _PinLines:
-    """Per pin, the line points of every chord from it, built the first time the pin is visited.
-
-    ``nearest``: points on their nearest pixel (else truncated, as ThreadTone does); ``spacing``:
-    pixels between points (1: ThreadTone's); ``keep``: False builds them again each time (for a caller
-    that keeps them itself).
-    """
-
-    def __init__(self, space, size, *, nearest=False, spacing=1.0, keep=True):
-        self.space, self.size, self.nearest, self.spacing, self.keep = space, size, nearest, spacing, keep
-        if nearest:
-            self.rc = pin_pixels(space.pin_xy, size)
-        else:  # ThreadTone truncates its pin coordinates: int(r + 1 + r cos a), sampled one pixel lower
-            self.rc = np.clip(np.floor(np.asarray(space.pin_xy)[:, ::-1] * (size - 1) + 1e-9), 0,
-                              size - 1).astype(np.int64)
-        self.cache = {}
-
-    def get_with_counts(self, p):
-        """``(others, flat, starts, counts)``: the pins reachable from ``p`` and their chords' points."""
-        row = self.cache.get(p)
-        if row is None:
-            others = np.flatnonzero(self.space.index[p] >= 0)
-            r0, c0 = self.rc[p]
-            starts, flat = line_samples(r0, c0, self.rc[others, 0], self.rc[others, 1], self.size,
-                                        nearest=self.nearest, spacing=self.spacing)
-            counts = np.diff(np.append(starts, len(flat))).astype(np.float32)
-            row = (others, flat, starts, counts)
-            if self.keep:
-                self.cache[p] = row
-        return row
-
-    def get(self, p):
-        return self.get_with_counts(p)[:3]
-
-
 def greedy_sequence(space, size, gray, mask, lines, *, start_pin=0, weight=15.0, width=3, min_loop=3,
                     reference_radius=500.0):
     """ThreadTone's greedy pin sequence (see the module notes).
@@ -205,7 +123,7 @@ def greedy_sequence(space, size, gray, mask, lines, *, start_pin=0, weight=15.0,
         weight = weight * ((size - 1) / 2.0) / float(reference_radius)
     half = cv_half_width(width)
     work = np.where(mask, 255.0 - np.asarray(gray, dtype=np.float32), 0.0).astype(np.float32).ravel()
-    pins = _PinLines(space, size)
+    pins = PinLines(space, size)
     rc = pins.rc
     seq = [int(start_pin)]
     cur = int(start_pin)

@@ -24,7 +24,7 @@ import logging
 
 import numpy as np
 
-from .greedy import _PinLines
+from ..model.lines import PinLines
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +38,7 @@ BLOCK = 2
 
 def polish_lines(space, canvas):
     """The chords' points the polish scores along (each pin's row is kept by the canvas)."""
-    return _PinLines(space, canvas.size, nearest=True, spacing=POLISH_SPACING, keep=False)
+    return PinLines(space, canvas.size, nearest=True, spacing=POLISH_SPACING, keep=False)
 
 
 def badness_order(canvas, seq, pin_lines):

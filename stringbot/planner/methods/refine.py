@@ -46,7 +46,7 @@ def refine_sequence(canvas, seq, pin_lines, *, budget=300, remove=True):
     canvas : Canvas
         Holds ``seq`` drawn; kept in step with the changes.
     seq : list of int
-    pin_lines : _PinLines
+    pin_lines : PinLines
     budget : int
         How many pins to revisit.
     remove : bool

@@ -40,10 +40,10 @@ import time
 import numpy as np
 
 from ...errors import BadInput
+from ..model.lines import PinLines
 from ..progress import report
 from . import Outcome
 from .canvas import Canvas, fresh
-from .greedy import _PinLines
 
 log = logging.getLogger(__name__)
 
@@ -92,7 +92,7 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     start_pin : int or None
         None: :func:`best_start`.
     min_loop : int
-    pin_lines : _PinLines, optional
+    pin_lines : PinLines, optional
         Shared per-pin line points (built here when not given).
     patience : int
     on_chord : callable, optional
@@ -105,10 +105,10 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     """
     auto = lines == "auto"
     limit = MAX_AUTO if auto else int(lines)
-    pins = pin_lines or _PinLines(space, canvas.size, nearest=True)
+    pins = pin_lines or PinLines(space, canvas.size, nearest=True)
     mix = EYE_SHARE if canvas.eye is not None else 0.0
     if mix:
-        eye_lines = _PinLines(space, canvas.eye.size, nearest=True, spacing=1.0)
+        eye_lines = PinLines(space, canvas.eye.size, nearest=True, spacing=1.0)
         eye_rows = {}
         eg = canvas.eye_slope
         # the pixel slope is a darkness per unit of coverage; the eye's is per unit of coverage of a
@@ -191,7 +191,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     # residual along a chord needs no more, and this halves the work of large sizes); every 1/200 for
     # a plan to be polished (see CHOOSE_POINTS_POLISHED)
     points = CHOOSE_POINTS_POLISHED if polish else CHOOSE_POINTS
-    pin_lines = _PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / points))
+    pin_lines = PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / points))
     helper = None
     if polish:
         from .woven_helper import WovenHelper, two_cores

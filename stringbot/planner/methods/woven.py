@@ -24,10 +24,10 @@ import logging
 
 import numpy as np
 
-from .eye import EYE_SIGMA, EyeError
-from .canvas import fresh, sum_sparse
 from ..model.scoring import WOVEN_SIZE
 from ..model.union import COUNT, UnionStamp, fine_per_pixel, unique
+from .canvas import fresh, sum_sparse
+from .eye import EYE_SIGMA, EyeError
 
 log = logging.getLogger(__name__)
 
