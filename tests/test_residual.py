@@ -11,6 +11,7 @@ from stringbot.planner.methods.residual import residual_sequence
 from stringbot.planner.model.chords import chord_space, frame_mask
 from stringbot.planner.model.lines import PinLines
 from stringbot.planner.model.scoring import woven_error
+from stringbot.planner.model.thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM
 
 from planner_helpers import picture
 
@@ -177,7 +178,7 @@ def test_residual_starts_at_an_end_of_its_best_chord_unless_told():
     g = disc_picture()
     space = chord_space(80)
     pl = PinLines(space, g.shape[0], nearest=True)
-    canvas = canvas_of(g, space, width_px=0.25 / 500 * g.shape[0])  # the default thread at 101 px
+    canvas = canvas_of(g, space, width_px=DEFAULT_THREAD_MM / DEFAULT_DIAMETER_MM * g.shape[0])  # the default thread
 
     def top(a):
         others, pix, starts, counts = pl.get_with_counts(a)
