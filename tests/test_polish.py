@@ -13,11 +13,10 @@ from stringbot.planner.build import plan_picture
 from stringbot.planner.methods.polish import polish_plan
 from stringbot.planner.methods.woven import WovenCanvas
 from stringbot.planner.model.chords import chord_space, frame_mask
-from stringbot.planner.model.reference import reference_coverage
 from stringbot.planner.model.scoring import woven_error
 from stringbot.planner.picture.resample import resize_square
 
-from planner_helpers import picture
+from planner_helpers import picture, union_brute
 
 M = 64  # the error's grid in these tests
 WIDTH = 1.0 / 32  # thread width in grid pixels: the fine canvas is 2048 px, as the scorer's
@@ -47,10 +46,9 @@ def polished_canvas(t, mask, space, chords):
 
 
 def brute_error(canvas, chords, t, mask):
-    """E from scratch: the chords' union as the reference rendering draws it on the canvas's fine grid,
-    averaged to the grid, the error blurred by the canvas's own kernel."""
-    f, m = canvas.f, canvas.size
-    D = reference_coverage(chords, canvas.pin_xy, size=m, thread_fraction=WIDTH / m, factor=f).astype(float)
+    """E from scratch: the chords' union on the canvas's fine grid (each sample tested against each
+    thread), averaged to the grid, the error blurred by the canvas's own kernel."""
+    D = union_brute(chords, canvas.pin_xy, canvas.size, canvas.f, WIDTH)
     x = np.sqrt(mask.astype(float)) * (t - D)
     k1 = canvas._kw1.reshape(int(np.sqrt(len(canvas._kw1))), -1)
     pad = np.pad(x, canvas.rad)

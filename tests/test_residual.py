@@ -13,7 +13,7 @@ from stringbot.planner.model.lines import PinLines
 from stringbot.planner.model.scoring import woven_error
 from stringbot.planner.model.thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM
 
-from planner_helpers import picture
+from planner_helpers import picture, union_brute
 
 
 def disc_picture(size=101):
@@ -47,11 +47,8 @@ def test_residual_draws_where_the_picture_is_dark_and_stops_by_itself():
     # darker where the picture is dark
     D = canvas.D.reshape(g.shape)
     assert D[g < 50].mean() > 3 * D[g > 250].mean()
-    # the drawing is the reference rendering's union of the threads, sampled f x f a pixel
-    from stringbot.planner.model.reference import reference_coverage
-
-    ref = reference_coverage(list(zip(seq[:-1], seq[1:])), space.pin_xy, size=g.shape[0],
-                             thread_fraction=0.2 / g.shape[0], factor=canvas.f)
+    # the drawing is the union of the threads, sampled f x f a pixel at the samples' offsets
+    ref = union_brute(list(zip(seq[:-1], seq[1:])), space.pin_xy, g.shape[0], canvas.f, 0.2)
     np.testing.assert_allclose(D, ref, atol=1e-6)
 
 

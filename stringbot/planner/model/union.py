@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 
-__all__ = ["UnionStamp", "fine_per_pixel", "unique", "COUNT"]
+__all__ = ["UnionStamp", "fine_per_pixel", "offsets", "unique", "COUNT", "SEED"]
 
 #: the counts' type: a sample may lie under up to 65535 threads (a chord drawn 300 times over counts each)
 COUNT = np.uint16
@@ -39,6 +39,37 @@ def fine_per_pixel(width_px, *, samples=1.0, largest=None):
     samples wide (``round``: 0.128 px -> 8); at most ``largest`` (None: no bound)."""
     f = max(1, int(round(float(samples) / float(width_px))))
     return f if largest is None else max(1, min(f, int(largest)))
+
+
+#: the seed of the samples' offsets (:func:`offsets`): every process draws a plan on the same samples
+SEED = 23
+
+
+def offsets(F, *, rng=None):
+    """The samples' offsets on an ``F x F`` fine canvas: ``(down, across)``, float64 in ``[-0.5, 0.5)``.
+
+    A thread nearer horizontal (a run of rows per column) tests the sample of
+    row ``r`` and column ``c`` at ``(c + 0.5, r + 0.5 + down[c])``; one nearer
+    vertical (a run of columns per row) at ``(c + 0.5 + across[r], r +
+    0.5)``; each stays in its own cell.  On a regular lattice a thread about
+    one sample wide meets the samples in the same phase column after column,
+    so two threads side by side, or a chord drawn again a hair off the first,
+    are over- or under-counted alike along their whole length, and the error
+    survives the eye's blur; with the phase drawn at random from column to
+    column the errors are independent and the blur averages them out
+    (docs/planner.md, "The planner's thread model").  Two threads of the two
+    kinds meet at an angle, and a straight band's overlap with another
+    crossing it does not depend on where, along either, it is tested: their
+    union is counted as on one lattice.
+
+    Parameters
+    ----------
+    F : int
+    rng : None, int or numpy Generator
+        None: :data:`SEED` (the same samples in every process, so the same plan).
+    """
+    rng = np.random.default_rng(SEED if rng is None else rng)
+    return rng.random(int(F)) - 0.5, rng.random(int(F)) - 0.5
 
 
 class UnionStamp:
@@ -52,15 +83,21 @@ class UnionStamp:
         Samples per pixel's side.
     width_px : float
         Thread width in pixels of the grid.
+    jitter : bool
+        Test the samples at their :func:`offsets` (the planners' canvases); False: at their centres
+        (the reference rendering's lattice).
 
     Calling ``stamp(xy0, xy1)`` gives the flat indices (int32, each once) of
     the samples of the ``m f x m f`` canvas the thread covers, by the
-    reference rendering's test; :meth:`cells` the pixel of each.
+    reference rendering's test (a sample is covered when it is within half
+    the thread's width of its line, between its ends); :meth:`cells` the
+    pixel of each.
     """
 
-    def __init__(self, m, f, width_px):
+    def __init__(self, m, f, width_px, *, jitter=True):
         self.m, self.f = int(m), int(f)
         self.F = self.m * self.f
+        self._off = offsets(self.F) if jitter else (np.zeros(self.F), np.zeros(self.F))
         self.half = float(width_px) * self.f / 2.0  # half the thread's width in samples
         # samples of one thread, at most: a run of up to 2 half sqrt(2) + 2 per column of the canvas
         self.max_samples = self.F * (int(math.ceil(2.0 * self.half * math.sqrt(2.0))) + 2)
@@ -68,13 +105,14 @@ class UnionStamp:
 
     def __call__(self, xy0, xy1):
         """The samples the thread from ``xy0`` to ``xy1`` covers: what
-        :func:`~stringbot.planner.model.reference.thread_samples` gives, made with few array operations."""
+        :func:`~stringbot.planner.model.reference.thread_samples` gives on the samples as offset
+        (:func:`offsets`), made with few array operations."""
         F = self.F
         x0, y0, x1, y1 = xy0[0] * F, xy0[1] * F, xy1[0] * F, xy1[1] * F
         if abs(x1 - x0) >= abs(y1 - y0):  # a run of rows per column
-            a0, a1, b0, b1, smaj, smin = x0, x1, y0, y1, 1, F
+            a0, a1, b0, b1, smaj, smin, off = x0, x1, y0, y1, 1, F, self._off[0]
         else:  # a run of columns per row
-            a0, a1, b0, b1, smaj, smin = y0, y1, x0, x1, F, 1
+            a0, a1, b0, b1, smaj, smin, off = y0, y1, x0, x1, F, 1, self._off[1]
         if a1 < a0:
             a0, a1, b0, b1 = a1, a0, b1, b0
         slope = (b1 - b0) / max(a1 - a0, 1e-12)
@@ -85,12 +123,13 @@ class UnionStamp:
         a = np.arange(first, last + 1, dtype=np.float64)
         m = a * slope
         m += b0 + (0.5 - a0) * slope
+        m -= off[first:last + 1]  # the line's centre against the samples of each column (or row) as offset
         start = np.ceil(m - (hh + 0.5))
         n = np.floor(m + (hh - 0.5)) - start + 1.0
         top = int(n.max())
         if top <= 0:
             return np.zeros(0, np.int32)
-        if start[0] < 0 or start[-1] < 0 or start[0] + top > F or start[-1] + top > F:  # near the edge
+        if start.min() < 0 or start.max() + top > F:  # near the edge
             off = np.arange(top, dtype=np.float64)
             minor = start[:, None] + off[None, :]
             ok = (off[None, :] < n[:, None]) & (minor >= 0) & (minor < F)
