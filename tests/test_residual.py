@@ -203,10 +203,13 @@ def test_the_error_as_the_eye_sees_it_is_kept_exactly_and_auto_stops_at_its_lowe
     canvas = Canvas(*_target(g), space.pin_xy, 0.2, eye=True)
     seq = residual_sequence(canvas, space, "auto")
     eye = canvas.eye
-    # kept chord by chord, it is the error of the drawing averaged to the eye's grid, from scratch
-    me = eye.size
-    cells = np.bincount(canvas._ecell, minlength=me * me)
-    d_eye = np.bincount(canvas._ecell, weights=canvas.D, minlength=me * me) / cells
+    # kept chord by chord, it is the error of the drawing's samples averaged to the eye's grid (each in
+    # the cell its centre lies in), from scratch
+    me, F = eye.size, canvas.F
+    rc = ((np.arange(F) + 0.5) * me / F).astype(int)
+    cell = (rc[:, None] * me + rc[None, :]).ravel()
+    d_eye = (np.bincount(cell, weights=(canvas.C > 0).astype(float), minlength=me * me)
+             / np.bincount(cell, minlength=me * me))
     kept = eye.error()
     assert eye.reset(d_eye) == pytest.approx(kept, rel=1e-9)  # reset: computed from scratch
     assert isinstance(eye, EyeError) and kept < eye.reset(np.zeros(me * me))

@@ -133,8 +133,10 @@ class Canvas:
         return float(np.sum(self.w * (self.t - self.D) ** 2))
 
     def _changes(self, chords_out, chords_in):
-        """``(flat, new, pix, dD)``: the samples removing then adding chords touches (each once), their
-        counts after, and the change of ``D`` on the pixels ``pix`` (each once); None for no chords.
+        """``(flat, new, pix, dD, turned)``: the samples removing then adding chords touches (each once),
+        their counts after, the change of ``D`` on the pixels ``pix`` (each once), and (with the eye's
+        grid, else None) the samples covered or uncovered and how (``(samples, +1 or -1)``); None for no
+        chords.
 
         A sample changes where its count goes from 0 to more (covered) or back to 0 (uncovered)."""
         parts = [(self._footprint(a, b), sign) for chords, sign in ((chords_out, -1), (chords_in, 1))
@@ -148,7 +150,8 @@ class Canvas:
                 new, turns = old + 1, old == 0
             else:
                 new, turns = old - (old > 0), old == 1
-            return flat, new, cu, np.bincount(inv[turns], minlength=len(cu)) * (sign / (self.f * self.f))
+            turned = None if self.eye is None else (flat[turns], float(sign))
+            return flat, new, cu, np.bincount(inv[turns], minlength=len(cu)) * (sign / (self.f * self.f)), turned
         every = np.concatenate([fp[0] for fp, _ in parts])
         if self._fmark is None:  # scratch for the samples (allocated the first time several chords change)
             self._fmark = np.zeros(self.F * self.F, dtype=np.int64)
@@ -161,14 +164,15 @@ class Canvas:
         hit = turns != 0
         cu, inv = unique(self._stamp.cells(flat[hit]), self._mark)
         dD = np.bincount(inv, weights=turns[hit], minlength=len(cu)) * (1.0 / (self.f * self.f))
-        return flat, new.astype(COUNT), cu, dD
+        turned = None if self.eye is None else (flat[hit], turns[hit].astype(np.float64))
+        return flat, new.astype(COUNT), cu, dD, turned
 
     def delta(self, chords_out=(), chords_in=()):
         """Exact change of ``E`` if ``chords_out`` were removed and ``chords_in`` added (nothing changes)."""
         ch = self._changes(chords_out, chords_in)
         if ch is None:
             return 0.0
-        _, _, pix, dD = ch
+        _, _, pix, dD, _ = ch
         t, w, d0 = self.t[pix], self.w[pix], self.D[pix]
         return float(np.sum(w * ((t - d0 - dD) ** 2 - (t - d0) ** 2)))
 
@@ -188,7 +192,7 @@ class Canvas:
                 self.uses[a, b] += sign
                 if a != b:
                     self.uses[b, a] += sign
-        flat, new, pix, dD = ch
+        flat, new, pix, dD, turned = ch
         self.C[flat] = new
         if not len(pix):
             return 0.0
@@ -202,7 +206,7 @@ class Canvas:
         r, left = t - d, 1.0 - d
         self.g[pix] = w * left * (r - self.kappa * left)
         if self.eye is not None:
-            self._eye_take(pix, dD)
+            self._eye_take(*turned)
         return float(np.sum(w * (r * r - (t - d0) ** 2)))
 
     def slope(self):
@@ -212,29 +216,41 @@ class Canvas:
     # -- the error as the eye sees it (lines="auto") ---------------------------------------------------------
 
     def _eye_grid(self, target, weights):
-        """The error as the eye sees it on a grid of :data:`EYE_GRID` px at most: each working pixel in one
-        of its cells, the cell the mean of its pixels, blurred by the scorer's sigma (its figure is the
-        scorer's within 0.01 on the peers' plans: docs/planner.md)."""
+        """The error as the eye sees it on a grid of :data:`EYE_GRID` px at most: each sample of the fine
+        canvas in the cell its centre lies in, a cell's darkness the share of its samples covered (its
+        target and weight the mean of its samples' pixels'), blurred by the scorer's sigma."""
         from .eye import EYE_SIGMA, EyeError
 
-        m = self.size
+        m, f, F = self.size, self.f, self.F
         me = min(EYE_GRID, m)
-        rc = (np.arange(m) * me) // m
-        self._ecell = (rc[:, None] * me + rc[None, :]).ravel()
-        n = np.bincount(self._ecell, minlength=me * me).astype(np.float64)
-        self._eshare = 1.0 / n[self._ecell]  # a pixel's share of its cell
-        area = np.bincount(self._ecell, weights=self.w, minlength=me * me) / n
-        te = np.bincount(self._ecell, weights=self.w * self.t, minlength=me * me) / np.maximum(area * n, 1e-12)
-        self.eye = eye = EyeError(te.reshape(me, me), area.reshape(me, me), sigma=EYE_SIGMA * me)
+        ec = (((np.arange(F) + 0.5) * me) // F).astype(np.int64)  # the cell row (or column) of a sample's
+        self._erow, self._ecol = ec * me, ec
+        n1 = np.bincount(ec, minlength=me).astype(np.float64)  # samples per cell, along one side
+        self._einv = 1.0 / np.outer(n1, n1).ravel()  # a sample's share of its cell
+        # A[j, i]: samples of pixel column i in cell column j; a cell's mean of a picture x is A x A^T / n
+        A = np.zeros((me, m))
+        np.add.at(A, (ec, np.arange(F) // f), 1.0)
+        cnt = np.outer(n1, n1)
+        w, t = np.asarray(weights, dtype=np.float64), np.asarray(target, dtype=np.float64)
+        area = (A @ w @ A.T) / cnt
+        te = (A @ (w * t) @ A.T) / np.maximum(area * cnt, 1e-12)
+        self.eye = eye = EyeError(te, area, sigma=EYE_SIGMA * me)
         self._emark = np.zeros(me * me, dtype=np.int64)
         self._eu = np.zeros(eye.P * eye.P)  # s (1 - D) on the eye's padded grid
         self._eu[eye.pidx] = eye.s
         self.eye_slope = self._eu * eye.G  # how much one more thread's coverage lowers the eye's error (/ 2)
 
-    def _eye_take(self, pix, dD):
-        cu, inv = unique(self._ecell[pix], self._emark)
+    def _eye_take(self, samples, turns):
+        """The eye's drawing after ``samples`` (flat, each once) were covered (``turns`` +1) or uncovered (-1)."""
+        F = self.F
+        row = samples // F
+        cu, inv = unique(self._erow[row] + self._ecol[samples - row * F], self._emark)
         eye = self.eye
-        eye.take(cu, np.bincount(inv, weights=dD * self._eshare[pix], minlength=len(cu)))
+        if np.ndim(turns):
+            dC = np.bincount(inv, weights=turns, minlength=len(cu))
+        else:  # all one way (one chord)
+            dC = np.bincount(inv, minlength=len(cu)) * turns
+        eye.take(cu, dC * self._einv[cu])
         self._eu[eye.pidx[cu]] = eye.s[cu] * (1.0 - eye.D[cu])
         np.multiply(self._eu, eye.G, out=self.eye_slope)
 
