@@ -15,7 +15,7 @@ that part is large), the slope the planners score chords by.
 
 Against the converged reference rendering of the same plan (box-filtered to
 512 px, both blurred by sigma 2 px) this model's drawing is within 0.001 in
-mean gray and 0.005-0.013 rms (docs/planner.md, "The planner's thread
+mean gray and 0.005-0.009 rms (docs/planner.md, "The planner's thread
 model"; ``benchmarks/bench_model_agreement.py``).
 
 :class:`UnionStamp` gives a thread's samples and the pixels they fall in;
