@@ -47,7 +47,7 @@ from .canvas import Canvas, fresh
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "PATIENCE", "EYE_SHARE"]
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "PATIENCE", "EYE_SHARE", "EYE_FIRST"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -55,6 +55,9 @@ MAX_AUTO = 60_000
 #: with ``lines="auto"``, the share of a chord's score that is the slope of the error as the eye sees it
 #: (the rest: the pixel error's); docs/planner.md, "How the chooser scores a chord"
 EYE_SHARE = 0.5
+#: with ``lines="auto"``, the chords from a pin whose pixel score is taken: the ones the eye scores highest
+#: (the pixel score of all of them: the same plans' quality, 10 % more of the chooser's time)
+EYE_FIRST = 40
 #: Points per frame side at which the choice samples each chord: a plan with a line count is judged pixel by
 #: pixel at the working size (every pixel at 401 px); the first draft of a plan to be polished needs half as
 #: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
@@ -126,13 +129,23 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
         others, pix, starts, counts = pins.get_with_counts(cur)
         if not len(others):
             break
-        raw = np.add.reduceat(g.take(pix), starts) / counts
         if mix:
             row = eye_rows.get(cur)
             if row is None:
                 eo, ep, es, ec = eye_lines.get_with_counts(cur)
                 row = eye_rows[cur] = (canvas.eye.pidx[ep], es, ec)
-            raw = (1.0 - mix) * raw + mix * escale * (np.add.reduceat(eg.take(row[0]), row[1]) / row[2])
+            by_eye = fresh(np.add.reduceat(eg.take(row[0]), row[1]) / row[2], canvas.uses[cur, others])
+            # the pixel score of the chords the eye scores highest only (a fifth of the points to sum)
+            top = np.argpartition(-by_eye, EYE_FIRST)[:EYE_FIRST] if len(others) > EYE_FIRST else \
+                np.arange(len(others))
+            n = counts[top].astype(np.int64)
+            ends = np.cumsum(n)
+            at = np.repeat(starts[top] - (ends - n), n) + np.arange(int(ends[-1]))
+            raw = np.full(len(others), -np.inf)
+            raw[top] = ((1.0 - mix) * (np.add.reduceat(g.take(pix[at]), ends - n) / counts[top])
+                        + mix * escale * by_eye[top])
+        else:
+            raw = np.add.reduceat(g.take(pix), starts) / counts
         score = fresh(raw, canvas.uses[cur, others])
         for q in seq[-min_loop:]:
             k = int(np.searchsorted(others, q))
