@@ -47,7 +47,8 @@ from .canvas import Canvas, fresh
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "PATIENCE", "EYE_SHARE", "EYE_FIRST"]
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "PATIENCE", "EYE_SHARE", "EYE_FIRST",
+           "LENGTH_POWER"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -58,6 +59,9 @@ EYE_SHARE = 0.5
 #: with ``lines="auto"``, the chords from a pin whose pixel score is taken: the ones the eye scores highest
 #: (the pixel score of all of them: the same plans' quality, 10 % more of the chooser's time)
 EYE_FIRST = 40
+#: with ``lines="auto"``, a chord's score is its mean slope times its length to this power (0: the mean,
+#: the gain per length; 1: the sum, its whole gain): longer chords, fewer lines (docs/planner.md)
+LENGTH_POWER = 0.3
 #: Points per frame side at which the choice samples each chord: a plan with a line count is judged pixel by
 #: pixel at the working size (every pixel at 401 px); the first draft of a plan to be polished needs half as
 #: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
@@ -134,7 +138,8 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
             if row is None:
                 eo, ep, es, ec = eye_lines.get_with_counts(cur)
                 row = eye_rows[cur] = (canvas.eye.pidx[ep], es, ec)
-            by_eye = fresh(np.add.reduceat(eg.take(row[0]), row[1]) / row[2], canvas.uses[cur, others])
+            longer = counts ** LENGTH_POWER  # the chord's length in points, to a power
+            by_eye = fresh(np.add.reduceat(eg.take(row[0]), row[1]) / row[2] * longer, canvas.uses[cur, others])
             # the pixel score of the chords the eye scores highest only (a fifth of the points to sum)
             top = np.argpartition(-by_eye, EYE_FIRST)[:EYE_FIRST] if len(others) > EYE_FIRST else \
                 np.arange(len(others))
@@ -142,7 +147,7 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
             ends = np.cumsum(n)
             at = np.repeat(starts[top] - (ends - n), n) + np.arange(int(ends[-1]))
             raw = np.full(len(others), -np.inf)
-            raw[top] = ((1.0 - mix) * (np.add.reduceat(g.take(pix[at]), ends - n) / counts[top])
+            raw[top] = ((1.0 - mix) * (np.add.reduceat(g.take(pix[at]), ends - n) / counts[top]) * longer[top]
                         + mix * escale * by_eye[top])
         else:
             raw = np.add.reduceat(g.take(pix), starts) / counts

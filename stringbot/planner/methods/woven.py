@@ -247,13 +247,16 @@ class WovenCanvas(EyeError):
         return row
 
     def scores(self, pin_lines, a):
-        """``(others, score)``: the mean of ``u G`` along each chord from pin ``a`` (its error slope),
-        ``-inf`` for a chord drawn already (a copy adds nothing: :func:`~stringbot.planner.methods.canvas.fresh`).
+        """``(others, score)``: the mean of ``u G`` along each chord from pin ``a`` (its error slope) times
+        the square root of its length in points, ``-inf`` for a chord drawn already (a copy adds nothing:
+        :func:`~stringbot.planner.methods.canvas.fresh`).  (The chord's whole gain is the sum, its
+        mean the gain per length; between the two the polish finds better pins to go through:
+        docs/planner.md.)
 
         ``pin_lines`` should not keep its points (``keep=False``): they are kept here, on the padded grid.
         """
         others, pp, starts, counts = self.row(pin_lines, a)
-        return others, fresh(np.add.reduceat(self.g.take(pp), starts) / counts, self.uses[a, others])
+        return others, fresh(np.add.reduceat(self.g.take(pp), starts) / np.sqrt(counts), self.uses[a, others])
 
     def chord_scores(self, pin_lines, chords):
         """The mean of ``u G`` along each of the given chords ``(a, b)`` (each from its pin ``a``'s row, as
