@@ -33,7 +33,7 @@ def coverage(space, width_px):
     """The chords' coverage of the pixels, ``(A, A^T)`` as CSR (pixels x chords), by the chooser's union."""
     import scipy.sparse as sp
 
-    from stringbot.planner.methods.residual import Canvas
+    from stringbot.planner.methods.canvas import Canvas
 
     blank = np.zeros((SIZE, SIZE))
     canvas = Canvas(blank, blank, space.pin_xy, width_px)
@@ -81,9 +81,8 @@ def main():
     from bench_model_agreement import our_plans
     from quality_table import score_plan
 
-    from stringbot.planner.build import thread_model
-    from stringbot.planner.methods.fitness import frame_mask
-    from stringbot.planner.model.chords import chord_space
+    from stringbot.planner.knobs import thread_model
+    from stringbot.planner.model.chords import chord_space, frame_mask
     from stringbot.planner.model.scoring import LUMINANCE
     from stringbot.planner.picture.read import read_picture
 
