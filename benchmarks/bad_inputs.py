@@ -134,6 +134,9 @@ CASES = [
     "calibrate fit camera.png --machine grbl-ring --sheet plan.json -o mine.toml",
     "calibrate fit camera.png --machine grbl-ring --sheet marlin-sheet.json -o mine.toml",
     "calibrate fit camera.png --machine grbl-ring -o mine.json",
+    # issue 25: faces
+    "plan camera.png -o f.json --face --pins 60 --lines 50 --size 101",
+    "plan camera.png -o c.json --colors black,red --face",
 ]
 #: Cases that go on with a warning (exit 0, one ``stringbot: warning:`` line).
 WARNINGS = ("plan strip.png",)

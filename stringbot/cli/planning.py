@@ -48,6 +48,10 @@ class _Lines(click.ParamType):
               help="Pins on a ring, or along the border of a square (a square is wound by hand: stringbot pins).")
 @click.option("--crop", default=None, help="CX,CY,R in picture pixels [default: largest centred circle].")
 @click.option("--fit", is_flag=True, help="Paint the whole picture, letterboxed on the board, not its centre.")
+@click.option("--face", type=click.Choice(["auto", "on", "off"]), default="off", show_default=True, is_flag=False,
+              flag_value="on",
+              help="Centre the crop on the largest face and weigh the face more; --face alone: on (refuses a "
+                   "picture without a face); auto: when a face is found, else as off.")
 @click.option("--start-pin", type=int, default=None,
               help="First pin (0 is at the top, numbered clockwise) [default: residual: an end of its best chord; "
                    "fitness: 0; greedy: pins / 4, ThreadTone's].")
@@ -85,8 +89,8 @@ class _Lines(click.ParamType):
 @click.option("--background", default=None, metavar="white|black|#rrggbb",
               help="Colour of the board the threads are wound over [default: white]; plans in colour.")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
-             start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine, polish,
-             no_cache, force, colors, background):
+             face, start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
+             polish, no_cache, force, colors, background):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
@@ -142,7 +146,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                              importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
                              T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
                              diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish,
-                             preview=PREVIEW_SIZE)
+                             preview=PREVIEW_SIZE, face=face)
     finally:
         shown.close()
     if machine is not None:
@@ -161,6 +165,11 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     thread = f"{s['thread_diameters'] * p.diameter_mm / 1000.0:.1f} m"
     click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
                f"{s['seconds']:.2f} s -> {output} (preview {preview})")
+    if p.parameters.get("face"):
+        r, c, h, w = p.parameters["face"]["box"]
+        click.echo(f"face: found at rows {r:.0f}-{r + h:.0f}, columns {c:.0f}-{c + w:.0f} of the picture; "
+                   f"{'the crop is centred on it, ' if crop is None and not fit else ''}the face weighs twice in "
+                   "the planner's error")
     if p.stats.get("line_cap"):
         warn(f"planning stopped at the cap of {p.stats['line_cap']} lines, not because the picture was matched: "
              f"it asks for more thread than that; check the preview {preview!r}, or give --lines N")
@@ -281,7 +290,9 @@ def score_cmd(plan, image, as_json, colour):
         click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "connected": p.connected,
                                "lines": r["lines"], "target": "luminance", **{k: round(r[k], 4) for k in keys},
                                "own_gray": {"weights": own["weights"], **{k: round(own[k], 4) for k in keys}},
-                               "blur_sigma": BLUR_SIGMA}))
+                               "blur_sigma": BLUR_SIGMA,
+                               **({"face": {k: v if k == "box" else round(v, 4) for k, v in r["face"].items()}}
+                                  if "face" in r else {})}))
         return
     w = own["weights"]
     how = "the picture is gray" if w is None else \
@@ -295,11 +306,23 @@ def score_cmd(plan, image, as_json, colour):
                f"{'own gray':<10} SSIM {own['ssim']:.4f} / blurred {own['ssim_blurred']:.4f}, 7x7 "
                f"{own['ssim_uniform']:.4f} / {own['ssim_uniform_blurred']:.4f}, woven {own['woven_error']:.4f}"
                f"   (against the gray the plan was made against: {how})\n"
+               f"{_face_line(r)}"
                "The figures above the last line compare the plan with the picture's luminance (0.2125 R + "
                "0.7154 G + 0.0721 B, as skimage's rgb2gray), for 'woven' the plan drawn as it will hang. "
                "SSIM compares the drawing with the picture, both 201 px (the paper's section 4.1): 1 is "
                "the picture itself, 0 nothing in common; higher is better. 'blurred' compares them after "
                "a blur (sigma 2 px), as the eye sees the painting from afar.")
+
+
+def _face_line(r):
+    """The score's line for a plan made with --face: SSIM as woven inside the face box and over the frame."""
+    if "face" not in r:
+        return ""
+    f = r["face"]
+    y, x, h, w = f["box"]
+    return (f"{'face':<10} SSIM {f['ssim_face']:.4f} / blurred {f['ssim_face_blurred']:.4f} inside the face box "
+            f"(rows {y:.0f}-{y + h:.0f}, columns {x:.0f}-{x + w:.0f}); over the frame {f['ssim_frame']:.4f} / "
+            f"{f['ssim_frame_blurred']:.4f}   (as woven at 512 px against the luminance)\n")
 
 
 def _score_colour(p, plan, image, as_json):

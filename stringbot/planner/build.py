@@ -6,9 +6,11 @@
    takes it, the method's defaults filled in from its record in the registry
    (:mod:`stringbot.planner.methods`).  Nothing is read before they pass.
 2. **The picture** (:func:`read_for_plan`): the part of it to paint (:func:`crop_for`: the crop given,
-   the whole picture with ``fit``, the method's own, or the largest centred circle), read at the
-   method's working size, gray and resampling (:mod:`stringbot.planner.picture.read`), the importance
-   weights, the frame mask; a picture too dark for black thread on white is refused.
+   the whole picture with ``fit``, centred on the largest face with ``face``, the method's own, or the
+   largest centred circle), read at the method's working size, gray and resampling
+   (:mod:`stringbot.planner.picture.read`), the importance weights (an importance mask's, the face's:
+   :mod:`stringbot.planner.picture.face`), the frame mask; a picture too dark for black thread on white
+   is refused.
 3. **One method** (its ``run(job)``, :class:`~stringbot.planner.methods.Job`): the sequence, the knobs
    it used and its figures, recorded in the :class:`~stringbot.planner.plan_file.Plan` with the
    picture's identity, the line count and the thread's length.
@@ -24,6 +26,7 @@ from ..errors import BadInput
 from .knobs import auto_lines, check_knobs, settle  # noqa: F401  (check_knobs: the colour planner's import)
 from .methods import DEFAULT_METHOD, DEFAULTS, Job, outcome
 from .model.chords import chord_space, frame_mask, thread_length
+from .picture.face import crop_on_face, face_for_plan, face_weights
 from .picture.read import fit_crop, read_mask, read_picture
 from .plan_file import Plan
 from .progress import report
@@ -44,7 +47,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
                  picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
-                 diameter_mm=None, thread_mm=None, fit=False, refine=None, polish=None, preview=None):
+                 diameter_mm=None, thread_mm=None, fit=False, refine=None, polish=None, preview=None, face="off"):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -97,6 +100,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         The side of the drawing as woven the caller will make
         (:func:`~stringbot.planner.model.render.draw_woven`, black on white): a
         polish on two cores draws it meanwhile (the plan's ``woven_drawings``).
+    face : {"off", "auto", "on"}
+        Centre the crop on the largest face and weigh it (:func:`read_for_plan`).
 
     Returns
     -------
@@ -109,7 +114,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                    disconnected=disconnected, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma, T=T,
                    epsilon=epsilon, iterations=iterations, greedy_reference_radius=greedy_reference_radius,
                    diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish)
-    pic, mask, weights = read_for_plan(path, knobs, picture=picture, importance=importance, rng=rng)
+    pic, mask, weights, found = read_for_plan(path, knobs, picture=picture, importance=importance, rng=rng, face=face)
     how = knobs.method
     target = None if knobs.lines == "auto" and how.stops_itself else \
         auto_lines(pic.gray, mask) if knobs.lines == "auto" else int(knobs.lines)
@@ -130,7 +135,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
               "lines_target": target, "start_pin": knobs.start_pin if knobs.start_pin is not None else seq[0],
               "method": how.name, "disconnected": knobs.given["disconnected"], "gray": pic.gray_method,
               "gray_requested": knobs.gray, "gray_weights": pic.weights,
-              "importance": str(importance) if importance is not None else None, **result.params}
+              "importance": str(importance) if importance is not None else None, "face": found and found.to_record(),
+              **result.params}
     stats = {"mean_gray": round(float(pic.gray[mask].mean()), 3), "chords": int(space.m), **result.stats}
     stats.update(lines=len(chord_list), thread_diameters=round(thread_length(space.pin_xy, chord_list), 3),
                  setup_seconds=round(t_setup - t0, 3), seconds=round(time.perf_counter() - t0, 3))
@@ -143,18 +149,21 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                 woven_drawings=result.drawings)
 
 
-def crop_for(path, knobs):
+def crop_for(path, knobs, *, face=None):
     """The part of the picture at ``path`` to paint, ``{"cx", "cy", "r"}`` in its pixels, or None (the
-    largest centred circle): the crop given, the whole picture letterboxed (``fit``), or the method's own."""
+    largest centred circle): the crop given, the whole picture letterboxed (``fit``), centred on ``face``
+    (a :class:`~stringbot.planner.picture.face.Face`), or the method's own."""
     if knobs.fit:
         return fit_crop(path, knobs.frame)
     if knobs.crop is not None:
         return knobs.crop
+    if face is not None:
+        return crop_on_face(path, face)
     return knobs.method.default_crop(path)
 
 
-def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None):
-    """The picture as the method plans it: ``(picture, mask, weights)``.
+def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None, face="off"):
+    """The picture as the method plans it: ``(picture, mask, weights, face)``.
 
     Parameters
     ----------
@@ -167,6 +176,9 @@ def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None):
         A mask picture of the source's size: the importance weights.
     rng : None, int or numpy Generator
         Randomness of the decolorization.
+    face : {"off", "auto", "on"}
+        Look for the largest face (:func:`~stringbot.planner.picture.face.face_for_plan`: ``on`` refuses
+        a picture without one), centre the crop on it unless one is given, weigh it; not with ``picture``.
 
     Returns
     -------
@@ -175,10 +187,13 @@ def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None):
     mask : ndarray of bool, shape (size, size)
         The frame.
     weights : ndarray of float32 or None
-        1 .. 2 by the importance mask, None without one.
+        1 .. 2 by the importance mask, times the face's weights (1 .. 2), None without either.
+    face : Face or None
+        The face found, in source pixels.
     """
     how, size = knobs.method, knobs.size
-    crop = knobs.crop if picture is not None else crop_for(path, knobs)
+    found = None if picture is not None else face_for_plan(path, face=face)
+    crop = knobs.crop if picture is not None else crop_for(path, knobs, face=found)
     report("reading the picture")
     pic = picture or read_picture(path, size=size, crop=crop, gray=knobs.gray, rng=rng, resample=how.resample,
                                   weights=how.weights_for(knobs.gray))
@@ -186,9 +201,11 @@ def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None):
     if importance is not None:
         weights = read_mask(importance, size=size, crop=pic.crop,
                             source_size=(pic.source["width"], pic.source["height"]))
+    if found is not None:  # --face: the face weighs more
+        weights = face_weights(found, crop=pic.crop, size=size, gray=pic.gray, times=weights)
     mask = frame_mask(size, knobs.frame)
     check_not_too_dark(pic.gray, mask)
-    return pic, mask, weights
+    return pic, mask, weights, found
 
 
 def _scored_against(path, pic, *, read, given, gray):

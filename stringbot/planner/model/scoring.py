@@ -38,7 +38,7 @@ from ..picture.read import LUMINANCE
 
 log = logging.getLogger(__name__)
 
-__all__ = ["score", "score_chords", "ssim_pair", "woven_error", "woven_drawing", "SCORE_DRAW", "SCORE_SIZE",
+__all__ = ["score", "score_chords", "face_scores", "face_ssim", "ssim_pair", "woven_error", "woven_drawing", "SCORE_DRAW", "SCORE_SIZE",
            "BLUR_SIGMA", "WOVEN_THREAD", "WOVEN_SIZE", "blurred_rms", "WOVEN_SIGMA", "SSIM_KEYS", "LUMINANCE",
            "score_picture", "plan_gray"]
 
@@ -189,7 +189,10 @@ def score_picture(plan, image, *, target="luminance"):
     dict
         :func:`score_chords`'s figures with ``woven_error``, and ``weights``
         (the colour-to-gray weights used, None for a gray picture) and
-        ``source`` (the picture's ``source`` record: path, sha256, size).
+        ``source`` (the picture's ``source`` record: path, sha256, size); for
+        a plan made with ``--face`` (and ``luminance``), ``face``: the SSIM as
+        woven inside the face box and over the frame
+        (:func:`face_scores`).
     """
     from ..picture.read import read_picture
 
@@ -203,6 +206,8 @@ def score_picture(plan, image, *, target="luminance"):
     woven = read_picture(image, size=WOVEN_SIZE, crop=plan.crop, weights=pic.weights, gray=gray)
     out = score(plan, pic.gray, woven_gray=woven.gray)
     out.update(weights=pic.weights, source=pic.source)
+    if target == "luminance" and (plan.parameters or {}).get("face"):  # made with --face: SSIM inside its box
+        out["face"] = face_scores(plan, woven.gray)
     return out
 
 
@@ -243,3 +248,77 @@ def score_chords(chords, pin_xy, gray, *, frame, blur_sigma=BLUR_SIGMA, woven_gr
     if woven_gray is not None:
         out["woven_error"] = woven_error(chords, pin_xy, woven_gray, frame=frame, thread_fraction=thread_fraction)
     return out
+
+
+def face_scores(plan, woven_gray, *, box=None):
+    """The plan as woven against its picture, inside the face box and over the frame.
+
+    Parameters
+    ----------
+    plan : Plan
+        Drawn by the reference rendering (:func:`~stringbot.planner.model.render.draw_woven`) at the
+        picture's size.
+    woven_gray : ndarray, shape (n, n)
+        The picture's luminance (0..255) read with the plan's crop.
+    box : sequence of float, optional
+        ``(row, col, height, width)`` in source pixels; default: the face the plan recorded
+        (:mod:`stringbot.planner.picture.face`).
+
+    Returns
+    -------
+    dict
+        ``box``, ``ssim_face``, ``ssim_frame`` (plain) and ``ssim_face_blurred``,
+        ``ssim_frame_blurred`` (both blurred by :data:`WOVEN_SIGMA` pixels first); see :func:`face_ssim`.
+    """
+    from .render import draw_woven
+
+    box = box if box is not None else plan.parameters["face"]["box"]
+    n = np.asarray(woven_gray).shape[0]
+    drawing = draw_woven(plan, size=n).astype(np.float64) / 255.0
+    picture = _framed(woven_gray, plan.frame)
+    out = {"box": [float(v) for v in box]}
+    for tail, sigma in (("", None), ("_blurred", WOVEN_SIGMA)):
+        s = face_ssim(drawing, picture, box, crop=plan.crop, frame=plan.frame, blur_sigma=sigma)
+        out[f"ssim_face{tail}"], out[f"ssim_frame{tail}"] = s["face"], s["frame"]
+    return out
+
+
+def face_ssim(drawing, picture, box, *, crop, frame, blur_sigma=None):
+    """SSIM of a drawing against its picture inside a face box and over the frame.
+
+    Parameters
+    ----------
+    drawing, picture : ndarray, shape (n, n)
+        Gray levels in [0, 1], of the same crop (the picture white outside the frame).
+    box : sequence of float
+        ``(row, col, height, width)`` in source pixels.
+    crop : dict
+        ``{"cx", "cy", "r"}`` of both.
+    frame : {"circle", "square"}
+    blur_sigma : float or None
+        Blur both by this many pixels first (None: plain).
+
+    Returns
+    -------
+    dict
+        ``face`` (the mean of SSIM's map over the box's pixels inside the frame; NaN when the box is out
+        of the frame) and ``frame`` (over the frame): scikit-image's ``structural_similarity`` with
+        Wang et al.'s Gaussian window (sigma 1.5), data range 1.
+    """
+    from scipy.ndimage import gaussian_filter
+    from skimage.metrics import structural_similarity
+
+    from ..picture.face import face_box_pixels
+    from .chords import frame_mask
+
+    a, b = (np.asarray(x, dtype=np.float64) for x in (drawing, picture))
+    if blur_sigma:
+        a, b = gaussian_filter(a, blur_sigma), gaussian_filter(b, blur_sigma)
+    _, smap = structural_similarity(a, b, data_range=1.0, full=True, **_WANG)
+    n = a.shape[0]
+    inside = frame_mask(n, frame)
+    r0, c0, r1, c1 = face_box_pixels(box, crop=crop, size=n)
+    face = np.zeros_like(inside)
+    face[r0:r1, c0:c1] = True
+    face &= inside
+    return {"face": float(smap[face].mean()) if face.any() else float("nan"), "frame": float(smap[inside].mean())}

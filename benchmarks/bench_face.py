@@ -1,0 +1,152 @@
+"""Faces: SSIM inside the face box and over the frame, with and without ``--face``.
+
+For each portrait the default plan (``stringbot plan IMG``: the default
+method, auto lines, 300 pins, a 0.25 mm thread on 500 mm) is made with
+``--face off`` and ``--face on``, and with ``--variants``: the face's
+weights alone (the default centred crop), the face's crop alone (its weights
+not raised), and the eyes, mouth and the face's edges weighed
+:data:`FEATURES` more on top of the face.  Each plan is scored as the user
+gets it: drawn by the reference rendering at 512 px against the picture's
+luminance read with the plan's own crop (white outside the frame),
+scikit-image's ``structural_similarity`` (Gaussian window, sigma 1.5), its
+map averaged over the face box (the one ``--face on`` found, in source
+pixels, mapped into each plan's frame) and over the frame; plain and both
+blurred by sigma 2 px.
+
+Portraits: the astronaut (``../shared/images/astronaut.png``, NASA, public
+domain) and three in ``benchmarks/data/`` (see its README.md for their
+sources and licences): Grace Hopper, Barack Obama's 2012 official portrait,
+Barack Obama speaking.
+
+Usage: python benchmarks/bench_face.py [--json] [--variants] [--sheet docs/faces.png] [IMAGE ...]
+"""
+
+import argparse
+import contextlib
+import json
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = next((d / "shared" for d in ROOT.parents if (d / "shared" / "images").is_dir()), ROOT.parent / "shared")
+sys.path.insert(0, str(ROOT))
+PORTRAITS = [SHARED / "images" / "astronaut.png", ROOT / "benchmarks" / "data" / "grace_hopper.jpg",
+             ROOT / "benchmarks" / "data" / "obama_portrait.jpg", ROOT / "benchmarks" / "data" / "obama_speech.jpg"]
+#: side of a contact sheet's tile
+SHEET_TILE = 240
+KEYS = ("ssim_face", "ssim_frame", "ssim_face_blurred", "ssim_frame_blurred")
+
+
+#: the "features" variant: the eyes, the mouth and the face's edges raised this much more than the face
+FEATURES = (0.5, 0.3, 0.3)
+
+
+@contextlib.contextmanager
+def features(eyes, mouth, edges):
+    """Plan with these extra weights on the eyes, the mouth and the face's edges (None: the defaults)."""
+    from stringbot.planner.picture import face
+
+    old = face.EYE_WEIGHT, face.MOUTH_WEIGHT, face.EDGE_WEIGHT
+    if eyes is not None:
+        face.EYE_WEIGHT, face.MOUTH_WEIGHT, face.EDGE_WEIGHT = eyes, mouth, edges
+    try:
+        yield
+    finally:
+        face.EYE_WEIGHT, face.MOUTH_WEIGHT, face.EDGE_WEIGHT = old
+
+
+def measure(plan, image, box):
+    """The plan's face and frame SSIM (``face_scores``) against the picture's luminance at 512 px."""
+    from stringbot.planner.model.scoring import WOVEN_SIZE, face_scores
+    from stringbot.planner.picture.read import read_picture
+
+    pic = read_picture(image, size=WOVEN_SIZE, crop=plan.crop, gray="luminance")
+    return face_scores(plan, pic.gray, box=box)
+
+
+def tiles(plan, image, size=SHEET_TILE):
+    """``[the picture's luminance with the plan's crop, the plan as woven]``, uint8 gray tiles."""
+    import numpy as np
+
+    from stringbot.planner.model.render import draw_woven
+    from stringbot.planner.picture.read import read_picture
+
+    pic = read_picture(image, size=size, crop=plan.crop, gray="luminance").gray
+    return [np.clip(pic, 0, 255).astype(np.uint8), draw_woven(plan, size=size)]
+
+
+def sheet(rows, path):
+    """Write the contact sheet: a row a portrait, each plan beside the picture's luminance with its crop:
+    luminance | --face off | luminance | --face on."""
+    import numpy as np
+    from PIL import Image
+
+    grid = np.vstack([np.hstack([t for pair in r["tiles"] for t in pair]) for r in rows])
+    Image.fromarray(grid).save(path, optimize=True)
+
+
+def run(image, *, variants=False):
+    """Plan ``image`` without and with ``--face`` (and the variants); their figures."""
+    from stringbot.planner.build import plan_picture
+    from stringbot.planner.picture.face import crop_on_face, face_for_plan
+    from stringbot.planner.picture.read import default_crop, fit_crop
+
+    found = face_for_plan(image, face="on")
+    crop = crop_on_face(image, found)
+    whole = fit_crop(image, "square")
+    plans = {"off": dict(face="off"), "on": dict(face="on")}
+    if variants:
+        plans["weights only"] = dict(face="on", crop=default_crop(2 * whole["cx"], 2 * whole["cy"]))
+        plans["crop only"] = dict(face="off", crop=crop)
+        plans["features"] = dict(face="on")
+    out = {"image": Path(image).name, "box": [round(v, 1) for v in found.to_record()["box"]], "plans": {},
+           "tiles": []}
+    for name, kw in plans.items():
+        t = time.perf_counter()
+        with features(*(FEATURES if name == "features" else (None, None, None))):
+            p = plan_picture(image, **kw)
+        s = measure(p, image, found.to_record()["box"])
+        if name in ("off", "on"):
+            out["tiles"].append(tiles(p, image))
+        out["plans"][name] = {"lines": p.stats["lines"], "seconds": round(time.perf_counter() - t, 2),
+                              "crop": {k: round(v, 1) for k, v in p.crop.items()},
+                              **{k: round(s[k], 4) for k in KEYS}}
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("images", nargs="*", type=Path, default=PORTRAITS)
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--variants", action="store_true", help="also the face's crop alone and its weights alone")
+    ap.add_argument("--sheet", type=Path, help="write a contact sheet: luminance | --face off | luminance | --face on")
+    a = ap.parse_args(argv)
+    rows = [run(im, variants=a.variants) for im in a.images]
+    if a.sheet:
+        sheet(rows, a.sheet)
+    for r in rows:
+        del r["tiles"]
+    if a.json:
+        print(json.dumps(rows, indent=1))
+        return
+    table(rows)
+
+
+def table(rows):
+    """Print the figures of :func:`run` as a Markdown table and the differences --face on minus off."""
+    print("| picture | plan | lines | SSIM face / frame | blurred: face / frame | crop (cx, cy, r) |")
+    print("|---|---|---|---|---|---|")
+    for r in rows:
+        for name, p in r["plans"].items():
+            c = p["crop"]
+            print(f"| {r['image']} | {name} | {p['lines']} | {p['ssim_face']:.3f} / {p['ssim_frame']:.3f} | "
+                  f"{p['ssim_face_blurred']:.3f} / {p['ssim_frame_blurred']:.3f} | "
+                  f"{c['cx']:g}, {c['cy']:g}, {c['r']:g} |")
+    for key in ("ssim_face", "ssim_frame", "ssim_face_blurred", "ssim_frame_blurred"):
+        d = [r["plans"]["on"][key] - r["plans"]["off"][key] for r in rows]
+        print(f"{key}: --face on minus off: " + ", ".join(f"{x:+.3f}" for x in d) + f" (mean {sum(d) / len(d):+.3f})")
+
+
+if __name__ == "__main__":
+    main()

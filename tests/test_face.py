@@ -1,0 +1,169 @@
+"""Faces: the largest frontal face found, the crop centred on it, its features weighed (planner/picture/face.py)."""
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+from skimage import data
+
+from stringbot.errors import BadInput
+from stringbot.planner import read_plan
+from stringbot.planner.build import plan_picture
+from stringbot.planner.model.scoring import face_ssim
+from stringbot.planner.picture.face import (Face, _group, crop_on_face, face_box_pixels, face_crop, face_for_plan,
+                                            face_weights, largest_face)
+from test_cli_plan import SMALL, one_error_line, picture, run  # noqa: F401  (picture: a fixture)
+
+#: the astronaut's face in skimage's 512-px picture, (row, col) of its centre (by eye: between the eyes
+#: and the mouth)
+ASTRONAUT_FACE = (118.0, 226.0)
+
+
+@pytest.fixture(autouse=True)
+def private_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("STRINGBOT_CACHE", str(tmp_path / "cache"))
+
+
+@pytest.fixture(scope="module")
+def astronaut():
+    return Image.fromarray(data.astronaut())
+
+
+def small(astronaut, folder, n=128):
+    path = folder / f"astronaut{n}.png"
+    astronaut.resize((n, n), Image.Resampling.LANCZOS).save(path)
+    return path
+
+
+@pytest.fixture
+def no_face(picture):
+    """A dark disc on light gray (test_cli_plan's picture): no face."""
+    return picture
+
+
+def test_the_face_is_found_on_a_small_astronaut(tmp_path, astronaut):
+    face = largest_face(small(astronaut, tmp_path))
+    assert face is not None and face.votes >= 8
+    k = 128 / 512
+    cy, cx = face.centre
+    assert abs(cy - ASTRONAUT_FACE[0] * k) < 0.1 * 128 and abs(cx - ASTRONAUT_FACE[1] * k) < 0.1 * 128
+    assert 0.12 * 128 < face.width < 0.35 * 128           # a face, not the whole picture nor a speck
+    (ry, lx), (_, rx) = face.eyes
+    assert face.row < ry < face.mouth[0] < face.row + face.height and lx < face.mouth[1] < rx
+
+
+def test_no_face_in_a_disc_nor_in_noise(tmp_path, no_face):
+    assert largest_face(no_face) is None
+    noise = tmp_path / "noise.png"
+    Image.fromarray(np.random.default_rng(1).integers(0, 256, (160, 160), dtype=np.uint8)).save(noise)
+    assert largest_face(noise) is None
+
+
+def test_windows_are_grouped_by_place_and_size():
+    windows = [(10, 10, 30), (11, 10, 31), (10, 12, 29), (9, 9, 32),     # one place, about one size
+               (10, 10, 60),                                               # same corner, twice the size
+               (80, 80, 30), (81, 79, 30)]
+    groups = _group(windows)
+    assert [g[0] for g in groups] == [4, 2, 1]
+    assert groups[0][1:] == pytest.approx((10, 10, 30.5), abs=1)
+
+
+def test_the_crop_is_centred_on_the_face_and_stays_inside(tmp_path, astronaut):
+    # the astronaut at the right of a wide white picture: the default crop is its centre, the face's is hers
+    wide = Image.new("RGB", (300, 160), "white")
+    wide.paste(astronaut.resize((160, 160), Image.Resampling.LANCZOS), (140, 0))
+    path = tmp_path / "wide.png"
+    wide.save(path)
+    face = face_for_plan(path, face="on")
+    assert face is not None
+    crop = crop_on_face(path, face)
+    cy, cx = face.centre
+    assert crop["r"] == 80 and crop["cx"] == pytest.approx(cx) and crop["cx"] > 180
+    assert crop["cy"] == 80  # moved down into the picture, not shrunk: the face is near the top
+    p = plan_picture(path, pins=60, size=101, lines=60, face="on")
+    assert p.crop == crop and p.parameters["face"]["box"][1] == pytest.approx(face.col, abs=0.1)
+    # a crop the user gives is kept (the face still weighed); --face off does not look
+    given = {"cx": 150.0, "cy": 80.0, "r": 60.0}
+    p = plan_picture(path, pins=60, size=101, lines=60, face="on", crop=given)
+    assert p.crop == given and p.parameters["face"] is not None
+    assert face_for_plan(path, face="off") is None
+    r = face_crop(Face(row=0, col=390, height=20, width=20, votes=9), width=400, height=128)
+    assert r == {"cx": 336.0, "cy": 64.0, "r": 64.0}
+
+
+def test_the_weights_are_raised_on_the_face_and_most_on_its_features():
+    size = 101
+    crop = {"cx": 50.5, "cy": 50.5, "r": 50.5}  # source pixels = working pixels
+    face = Face(row=20, col=30, height=40, width=40, votes=20)
+    gray = np.full((size, size), 200.0)
+    gray[30:70, 40:60] = 60.0  # an edge inside the face
+    w = face_weights(face, crop=crop, size=size, gray=gray)  # the face raised alike
+    assert w.shape == (size, size) and w.min() == pytest.approx(1.0)
+    r0, c0, r1, c1 = face_box_pixels((20, 30, 40, 40), crop=crop, size=size)
+    inside, outside = w[r0:r1, c0:c1], np.concatenate([w[:, :20].ravel(), w[:, 85:].ravel()])
+    assert outside.max() < 1.01 and inside.mean() > 1.7 and w[40, 50] == pytest.approx(2.0)
+    w = face_weights(face, crop=crop, size=size, gray=gray, eyes=1.5, mouth=1.0, edges=1.0)
+    (er, ec), _ = face.eyes
+    mr, mc = face.mouth
+    cheek = w[int(20 + 0.6 * 40), int(30 + 0.15 * 40)]
+    assert w[int(er), int(ec)] > cheek + 1 and w[int(mr), int(mc)] > cheek + 0.5
+    assert w[50, 40] > w[50, 35] + 0.3  # the edge at column 40 weighs more than the flat skin beside it
+
+
+def test_face_ssim_is_one_for_the_picture_and_lower_for_a_blank_face():
+    rng = np.random.default_rng(0)
+    pic = np.clip(0.5 + 0.2 * rng.standard_normal((64, 64)), 0, 1)
+    crop = {"cx": 32.0, "cy": 32.0, "r": 32.0}
+    box = (16, 16, 24, 24)
+    assert face_ssim(pic, pic, box, crop=crop, frame="square") == pytest.approx({"face": 1.0, "frame": 1.0})
+    drawn = pic.copy()
+    drawn[16:40, 16:40] = 0.5
+    s = face_ssim(drawn, pic, box, crop=crop, frame="square")
+    assert s["face"] < 0.2 < s["frame"] < 1.0
+
+
+def test_plan_face_on_a_small_astronaut_then_score(tmp_path, astronaut):
+    img = small(astronaut, tmp_path, 160)
+    out = tmp_path / "a.json"
+    code, stdout, err = run("plan", img, "-o", out, *SMALL, "--lines", "150", "--face")
+    assert code == 0, err
+    assert "face: found at rows" in stdout and "crop is centred on it" in stdout
+    p = read_plan(out)
+    r, c, h, w = p.parameters["face"]["box"]
+    assert r < ASTRONAUT_FACE[0] * 160 / 512 < r + h and c < ASTRONAUT_FACE[1] * 160 / 512 < c + w
+    code, stdout, err = run("score", out)
+    assert code == 0, err
+    line = next(ln for ln in stdout.splitlines() if ln.startswith("face"))
+    assert "inside the face box" in line and "over the frame" in line
+    code, stdout, err = run("score", out, "--json")
+    f = json.loads(stdout)["face"]
+    assert 0 < f["ssim_face_blurred"] <= 1 and 0 < f["ssim_frame_blurred"] <= 1 and f["box"] == [r, c, h, w]
+
+
+def test_face_on_a_picture_without_one_is_refused(tmp_path, no_face):
+    out = tmp_path / "d.json"
+    code, _, err = run("plan", no_face, "-o", out, *SMALL, "--lines", "50", "--face")
+    one_error_line(code, err, "no face found in")
+    assert "plan without --face" in err and not out.exists()
+    with pytest.raises(BadInput, match="no face found"):
+        plan_picture(no_face, pins=60, size=101, lines=50, face="on")
+
+
+def test_face_auto_on_a_picture_without_one_plans_as_before(tmp_path, no_face):
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    code, stdout, err = run("plan", no_face, "-o", a, *SMALL, "--lines", "50", "--face", "auto")
+    assert code == 0, err
+    assert "face:" not in stdout and not err.strip()
+    code, _, err = run("plan", no_face, "-o", b, *SMALL, "--lines", "50")  # off: the default
+    assert code == 0, err
+    pa, pb = read_plan(a), read_plan(b)
+    assert pa.sequence == pb.sequence and pa.crop == pb.crop and pa.parameters["face"] is None
+
+
+def test_face_is_a_knob_of_the_one_thread_planner(tmp_path, astronaut):
+    code, _, err = run("plan", small(astronaut, tmp_path), "-o", tmp_path / "c.json", *SMALL, "--colors", "black,red",
+                       "--face")
+    one_error_line(code, err, "--face")
+    code, _, err = run("plan", small(astronaut, tmp_path), "-o", tmp_path / "c.json", *SMALL, "--face", "maybe")
+    assert code == 2 and "maybe" in err
