@@ -13,7 +13,7 @@ runs it:
   reference, ``stringbot plan PIC`` at its own (automatic) line count;
 * per channel: each thread of the colour plan planned alone by the default
   one-thread planner against its own share of the picture (the picture
-  unmixed into the threads' coverages, :func:`stringbot.planner.colour.unmix`,
+  unmixed into the threads' coverages, :func:`stringbot.planner.colour.model.unmix`,
   each coverage map read as a gray picture), with the colour plan's lines
   shared in proportion to the coverage, the layers stacked in the colour
   plan's order and scored the same way (library calls: there is no command
@@ -82,10 +82,10 @@ def picture_path(name, folder):
 def per_channel(pic_path, plan):
     """Each thread planned alone (default one-thread planner) on its unmixed share; layers stacked."""
     from stringbot.planner.build import plan_picture
-    from stringbot.planner.colour import unmix
-    from stringbot.planner.colour_render import SCORE_SIZE, colour_score
+    from stringbot.planner.colour.model import unmix
+    from stringbot.planner.colour.palette import hex_to_rgb, to_linear
+    from stringbot.planner.colour.render import SCORE_SIZE, colour_score
     from stringbot.planner.model.chords import frame_mask
-    from stringbot.planner.palette import hex_to_rgb, to_linear
     from stringbot.planner.picture.read import Picture, read_picture
 
     size = plan.parameters["size"]
@@ -110,7 +110,7 @@ def per_channel(pic_path, plan):
 
 def quality(names, n, work):
     from stringbot.planner import read_plan
-    from stringbot.planner.palette import color_name
+    from stringbot.planner.colour.palette import color_name
 
     rows = []
     for name in names:

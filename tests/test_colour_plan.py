@@ -15,10 +15,10 @@ from stringbot.errors import BadInput
 from stringbot.motion import gcode_job, hook_steps
 from stringbot.motion.layers import layer_estimates
 from stringbot.planner import Plan, read_plan, write_plan
-from stringbot.planner.colour_build import plan_colour
-from stringbot.planner.colour_render import colour_score, plan_layers
+from stringbot.planner.colour.build import plan_colour
+from stringbot.planner.colour.render import colour_score, plan_layers
 from stringbot.planner.picture.read import read_picture
-from stringbot.planner.palette import auto_palette, parse_background, parse_color, parse_colors, threads
+from stringbot.planner.colour.palette import auto_palette, parse_background, parse_color, parse_colors, threads
 from stringbot.planner.model.thread import ThreadModel
 
 

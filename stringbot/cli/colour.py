@@ -14,7 +14,7 @@ MONO_ONLY = ("method", "disconnected", "importance", "gray", "alpha", "style", "
 
 
 def colour_names(colors):
-    from ..planner.palette import color_name
+    from ..planner.colour.palette import color_name
 
     return ", ".join(f"{color_name(c)} {c}" if color_name(c) != c else c for c in colors)
 
@@ -25,10 +25,10 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     import os
 
     from .._files import write_all_atomic
-    from ..planner.colour_build import plan_colour
-    from ..planner.colour_render import plan_layers, woven_rgb
+    from ..planner.colour.build import plan_colour
+    from ..planner.colour.render import plan_layers, woven_rgb
     from ..planner.image import parse_crop
-    from ..planner.palette import WHITE, parse_background, parse_colors
+    from ..planner.colour.palette import WHITE, parse_background, parse_colors
     from ..planner.progress import reporting
     from .planning import check_plan_outputs, warn_small_crop
     from .progress import PlanProgress
@@ -72,7 +72,7 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
 
 
 def _short(color):
-    from ..planner.palette import color_name
+    from ..planner.colour.palette import color_name
 
     return color_name(color)
 
@@ -109,7 +109,7 @@ def estimate_lines(plan, machine):
 def render_colour(plan, output, size):
     """``stringbot render`` of a colour plan: as woven."""
     from .._files import write_atomic
-    from ..planner.colour_render import plan_layers, woven_rgb
+    from ..planner.colour.render import plan_layers, woven_rgb
 
     write_atomic(output, png_rgb_bytes(woven_rgb(plan_layers(plan), plan.pin_xy, background=plan.background,
                                                  size=size, width=plan.thread_model().fraction)), what="drawing")
@@ -119,7 +119,7 @@ def render_colour(plan, output, size):
 
 def score_colour(plan, plan_path, image):
     """The colour score of any plan (a mono plan is black thread on white) against IMAGE at 201 px."""
-    from ..planner.colour_render import SCORE_SIZE, colour_score, plan_layers
+    from ..planner.colour.render import SCORE_SIZE, colour_score, plan_layers
     from ..planner.image import read_picture
 
     pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
@@ -162,7 +162,7 @@ def _word(text):
 def confirm_thread(question, color, *, prompt, say):
     """Ask until the operator types the thread's name (or its ``#rrggbb``, or ``y``): True; ``n``:
     False.  There is no default: an empty answer asks again, another colour is refused."""
-    from ..planner.palette import color_name, describe_color
+    from ..planner.colour.palette import color_name, describe_color
 
     name = color_name(color)
     yes = {_word(color), _word(name), "y", "yes"}
@@ -180,7 +180,7 @@ def confirm_thread(question, color, *, prompt, say):
 def first_thread_line(plan, mode):
     """Before a colour plan's winding with nobody to ask: the thread it starts with, and what
     happens at the spool changes."""
-    from ..planner.palette import describe_color
+    from ..planner.colour.palette import describe_color
 
     n = len(plan.colors) - 1
     then = {"stop": f"it stops at each of the {n} spool change(s) (exit 3) for you to tie the next one on",
@@ -194,7 +194,7 @@ def tie_on_simulator(pty_path, color, pin, *, serving):
     a thread of COLOUR on (its operator socket); its record gives every later wrap that colour."""
     from firmware_protocol.pty import OPERATOR_SUFFIX, tell_operator
 
-    from ..planner.palette import describe_color, parse_color
+    from ..planner.colour.palette import describe_color, parse_color
 
     if color is None:
         raise BadInput("--pin goes with --tie-on COLOUR (the thread tied on at that pin)")

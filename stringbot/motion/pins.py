@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import BadInput
-from ..planner.palette import describe_color
+from ..planner.colour.palette import describe_color
 from .hooking import wrap_direction
 
 __all__ = ["PinList", "pin_list", "format_txt", "format_csv", "square_offset", "thread_metres",

@@ -11,7 +11,7 @@ the opposite colour of its thread, the pins in gray.
 
 import numpy as np
 
-from .frames import chord_pixels, frame_ends
+from ..frames import chord_pixels, frame_ends
 from .palette import hex_to_rgb, to_linear, to_srgb
 
 __all__ = ["colour_growth_frames"]

@@ -66,7 +66,7 @@ def union_coverage(chords, pin_xy, *, size, width_px):
     ndarray of float32, shape (size, size)
         ``1 - prod (1 - c_i)`` over the threads' footprints ``c_i``.
     """
-    from .thread import footprints
+    from ..thread import footprints
 
     c = np.asarray(chords, dtype=np.int64).reshape(-1, 2)
     xy = np.asarray(pin_xy, dtype=np.float64)
@@ -103,7 +103,7 @@ def woven_rgb(layers, pin_xy, *, background=WHITE, size=1001, canvas=None, width
     ndarray of float64, shape (size, size, 3)
         In [0, 1].
     """
-    from .thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM
+    from ..thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM
 
     canvas = size if canvas is None else int(canvas)
     if canvas % size:
@@ -161,8 +161,8 @@ def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE, width=
     from skimage.color import deltaE_ciede2000, rgb2lab
     from skimage.transform import resize
 
-    from .fitness import frame_mask
-    from .scoring import ssim_pair
+    from ..fitness import frame_mask
+    from ..scoring import ssim_pair
 
     pic = np.asarray(picture_rgb, dtype=np.float64)
     if pic.shape != (SCORE_SIZE, SCORE_SIZE, 3):

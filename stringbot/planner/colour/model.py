@@ -1,7 +1,7 @@
 """Colour thread paintings: a joint greedy over (thread colour, chord) against the woven piece.
 
 Threads occlude rather than add.  The piece is modelled in linear light
-(:func:`stringbot.planner.palette.to_linear`): each layer ``k`` (one thread
+(:func:`stringbot.planner.colour.palette.to_linear`): each layer ``k`` (one thread
 colour ``c_k``, one continuous thread) covers a share ``a_k`` of each pixel,
 and the layers lie in winding order, later ones on top, the board ``B``
 showing through::
@@ -43,59 +43,16 @@ import logging
 
 import numpy as np
 
-from .palette import hex_to_rgb, to_linear
-from .progress import report
+from .palette import apply_jacobian, hex_to_rgb, lab, lab_jacobian, to_linear
+from ..progress import report
 
 log = logging.getLogger(__name__)
 
-__all__ = ["lab", "lab_jacobian", "apply_jacobian", "linear_colors", "first_pin", "unmix", "composite_jacobian", "ColourModel", "joint_greedy", "chord_weights_px"]
-
-# linear sRGB -> XYZ (D65), normalised by the white point: t = Q rgb; Lab = P f(t) + (-16, 0, 0)
-_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
-                 [0.2126729, 0.7151522, 0.0721750],
-                 [0.0193339, 0.1191920, 0.9503041]])
-_Q = _XYZ / _XYZ.sum(axis=1, keepdims=True)
-_QT = np.ascontiguousarray(_Q.T)
-_PT = np.array([[0.0, 116.0, 0.0], [500.0, -500.0, 0.0], [0.0, 200.0, -200.0]]).T
-_LAB0 = np.array([-16.0, 0.0, 0.0])
-_CUBE = (6.0 / 29.0) ** 3
-_SLOPE = 1.0 / (3 * (6.0 / 29.0) ** 2)
-
-
-def _f_fp(t):
-    """CIELAB's ``f`` and its derivative at ``t`` (normalised XYZ)."""
-    c = np.cbrt(np.maximum(t, 1e-12))
-    big = t > _CUBE
-    return np.where(big, c, t * _SLOPE + 4.0 / 29.0), np.where(big, 1.0 / (3.0 * c * c), _SLOPE)
-
-
-def lab(linear):
-    """Linear RGB (n, 3) -> CIELAB (n, 3), D65."""
-    f, _ = _f_fp(np.asarray(linear, dtype=np.float64) @ _QT)
-    return f @ _PT + _LAB0
-
-
-def lab_jacobian(linear):
-    """CIELAB at each of ``linear`` (n, 3) and what its Jacobian needs.
-
-    Returns
-    -------
-    lab : ndarray, shape (n, 3)
-    fp : ndarray, shape (n, 3)
-        ``J d = P (fp * (Q d))`` for a change ``d`` of linear RGB (see :func:`apply_jacobian`).
-    """
-    f, fp = _f_fp(np.asarray(linear, dtype=np.float64) @ _QT)
-    return f @ _PT + _LAB0, fp
-
-
-def apply_jacobian(fp, d):
-    """``J d`` per pixel: the change of CIELAB for a change ``d`` (n, 3) of linear RGB."""
-    return ((d @ _QT) * fp) @ _PT
-
+__all__ = ["linear_colors", "first_pin", "unmix", "composite_jacobian", "ColourModel", "joint_greedy", "chord_weights_px"]
 
 def chord_weights_px(space, size, width_px):
     """Share of each pixel of its 1-pixel line a chord covers: ``width_px * sqrt(1 + slope^2)`` (< 1)."""
-    from .chords import pin_pixels
+    from ..chords import pin_pixels
 
     rc = pin_pixels(space.pin_xy, size).astype(np.float64)
     d = np.abs(rc[space.ends[:, 1]] - rc[space.ends[:, 0]])
@@ -241,7 +198,7 @@ def unmix(target, board, colors, *, iterations=15, top=0.97, chunk=65536):
             u, d = composite_jacobian(a, board, colors)
             now, fp = lab_jacobian(u)
             r = now - tl                                             # (m, 3)
-            j = ((d @ _QT) * fp) @ _PT                               # (K, m, 3)
+            j = apply_jacobian(fp, d)                                # (K, m, 3)
             jtj = np.einsum("kmi,lmi->mkl", j, j) + eye
             jtr = np.einsum("kmi,mi->mk", j, r)
             step = np.linalg.solve(jtj, -jtr[..., None])[..., 0]      # (m, K)
@@ -249,7 +206,7 @@ def unmix(target, board, colors, *, iterations=15, top=0.97, chunk=65536):
         u, d = composite_jacobian(a, board, colors)
         now, fp = lab_jacobian(u)
         r = now - tl
-        j = ((d @ _QT) * fp) @ _PT
+        j = apply_jacobian(fp, d)
         out_a[:, lo:hi] = a
         out_h[lo:hi] = np.einsum("kmi,lmi->mkl", j, j)
         out_r[lo:hi] = (r * r).sum(axis=1)

@@ -1,7 +1,7 @@
-"""Picture -> colour Plan: threads, layer order, the joint greedy (:mod:`.colour`), the plan file's layers.
+"""Picture -> colour Plan: threads, layer order, the joint greedy (:mod:`.model`), the plan file's layers.
 
 The threads are the user's (``--colors black,#b22222,...``) or picked from
-the picture (``auto:N``, :func:`stringbot.planner.palette.auto_palette`).
+the picture (``auto:N``, :func:`stringbot.planner.colour.palette.auto_palette`).
 The layers are wound in order of their lightness contrast with the board (CIE
 L*): the thread nearest the board's lightness first (at the bottom), the one
 farthest from it last (on top), where the darkest detail of a picture on a
@@ -17,13 +17,13 @@ import time
 
 import numpy as np
 
-from ..errors import BadInput
-from .chords import chord_pixels, chord_space
-from .image import read_picture
+from ...errors import BadInput
+from ..chords import chord_pixels, chord_space
+from ..image import read_picture
 from .palette import WHITE, auto_palette, hex_to_rgb, to_linear
-from .plan_file import Layer, Plan
-from .progress import report
-from .thread import ThreadModel
+from ..plan_file import Layer, Plan
+from ..progress import report
+from ..thread import ThreadModel
 
 log = logging.getLogger(__name__)
 
@@ -49,7 +49,7 @@ def auto_colour_lines(gray, mask, background, colors):
 
 def layer_order(colors, background):
     """Winding order: by lightness contrast with the board (CIE L*), the nearest first (at the bottom)."""
-    from .colour import lab
+    from .palette import lab
 
     def contrast(c):
         both = lab(to_linear(np.stack([hex_to_rgb(c), hex_to_rgb(background)])))
@@ -68,20 +68,20 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     path : str or Path
         The picture.
     colors : list of str or ("auto", int)
-        Threads (``"#rrggbb"``) or ``("auto", n)`` (:func:`stringbot.planner.palette.parse_colors`).
+        Threads (``"#rrggbb"``) or ``("auto", n)`` (:func:`stringbot.planner.colour.palette.parse_colors`).
     background : str
         The board, ``"#rrggbb"``.
     pins, frame, size, crop, lines
         As for :func:`stringbot.planner.build.plan_picture`.
     start_pin : int, optional
         First pin of the first layer; None (default): each layer starts where
-        its best chord does (:func:`stringbot.planner.colour.first_pin`).
+        its best chord does (:func:`stringbot.planner.colour.model.first_pin`).
     model : ThreadModel, optional
         Frame and thread size (default 500 mm, 0.25 mm): how much of a pixel a thread covers.
     cache : bool
         Use the on-disk chord-pixel cache.
     run, sample
-        Knobs of :func:`stringbot.planner.colour.joint_greedy`.
+        Knobs of :func:`stringbot.planner.colour.model.joint_greedy`.
     order : {"contrast", "given"}
         Layer order: by contrast with the board, or as ``colors`` lists them.
     picture : Picture, optional
@@ -94,9 +94,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     Plan
         A version 2 plan (unless one black layer on white).
     """
-    from .build import auto_lines, check_knobs, thread_length
-    from .colour import ColourModel, chord_weights_px, joint_greedy, linear_colors
-    from .fitness import frame_mask
+    from ..build import auto_lines, check_knobs, thread_length
+    from .model import ColourModel, chord_weights_px, joint_greedy, linear_colors
+    from ..fitness import frame_mask
 
     t0 = time.perf_counter()
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin or 0, method="fitness",

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BadInput
+from ...errors import BadInput
 
-__all__ = ["threads", "describe_color", "parse_color", "parse_colors", "parse_background", "to_linear", "to_srgb",
+__all__ = ["lab", "lab_jacobian", "apply_jacobian", "threads", "describe_color", "parse_color", "parse_colors", "parse_background", "to_linear", "to_srgb",
            "hex_to_rgb", "rgb_to_hex", "auto_palette", "color_name", "BLACK", "WHITE", "MAX_COLORS",
            "MIN_DELTA_E"]
 
@@ -33,6 +33,49 @@ MAX_COLORS = 8
 MIN_DELTA_E = 8.0
 _BOARDS = {"white": WHITE, "black": BLACK}
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6}|[0-9a-fA-F]{3})$")
+
+
+# linear sRGB -> XYZ (D65), normalised by the white point: t = Q rgb; Lab = P f(t) + (-16, 0, 0)
+_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
+                 [0.2126729, 0.7151522, 0.0721750],
+                 [0.0193339, 0.1191920, 0.9503041]])
+_Q = _XYZ / _XYZ.sum(axis=1, keepdims=True)
+_QT = np.ascontiguousarray(_Q.T)
+_PT = np.array([[0.0, 116.0, 0.0], [500.0, -500.0, 0.0], [0.0, 200.0, -200.0]]).T
+_LAB0 = np.array([-16.0, 0.0, 0.0])
+_CUBE = (6.0 / 29.0) ** 3
+_SLOPE = 1.0 / (3 * (6.0 / 29.0) ** 2)
+
+
+def _f_fp(t):
+    """CIELAB's ``f`` and its derivative at ``t`` (normalised XYZ)."""
+    c = np.cbrt(np.maximum(t, 1e-12))
+    big = t > _CUBE
+    return np.where(big, c, t * _SLOPE + 4.0 / 29.0), np.where(big, 1.0 / (3.0 * c * c), _SLOPE)
+
+
+def lab(linear):
+    """Linear RGB (n, 3) -> CIELAB (n, 3), D65."""
+    f, _ = _f_fp(np.asarray(linear, dtype=np.float64) @ _QT)
+    return f @ _PT + _LAB0
+
+
+def lab_jacobian(linear):
+    """CIELAB at each of ``linear`` (n, 3) and what its Jacobian needs.
+
+    Returns
+    -------
+    lab : ndarray, shape (n, 3)
+    fp : ndarray, shape (n, 3)
+        ``J d = P (fp * (Q d))`` for a change ``d`` of linear RGB (see :func:`apply_jacobian`).
+    """
+    f, fp = _f_fp(np.asarray(linear, dtype=np.float64) @ _QT)
+    return f @ _PT + _LAB0, fp
+
+
+def apply_jacobian(fp, d):
+    """``J d`` per pixel: the change of CIELAB for a change ``d`` (n, 3) of linear RGB."""
+    return ((d @ _QT) * fp) @ _PT
 
 
 def _key(name):
@@ -118,7 +161,6 @@ def parse_background(text):
 
 def delta_e(hex_a, hex_b):
     """CIE76 (Euclidean CIELAB) difference between two colours."""
-    from .colour import lab
 
     pair = lab(to_linear(np.stack([hex_to_rgb(hex_a), hex_to_rgb(hex_b)])))
     return float(np.linalg.norm(pair[0] - pair[1]))
@@ -176,7 +218,6 @@ def _simplex_grid(vertices, steps):
 
 def _gamut_distance(lab_pixels, vertices_linear, grid):
     """Mean distance (CIELAB, Euclidean) from each pixel to the nearest mix of the vertices."""
-    from .colour import lab
 
     from scipy.spatial import cKDTree
 
@@ -212,7 +253,6 @@ def auto_palette(rgb, n, *, background=WHITE, mask=None, rng=None):
     list of str
         ``n`` distinct ``"#rrggbb"`` from the thread list, none the board's colour.
     """
-    from .colour import lab
 
     rng = np.random.default_rng(0 if rng is None else rng)
     px = np.asarray(rgb, dtype=np.float64).reshape(-1, 3)
