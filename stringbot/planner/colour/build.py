@@ -1,15 +1,12 @@
-"""Picture -> colour Plan: threads, layer order, the joint greedy (:mod:`.model`), the plan file's layers.
+"""Picture -> colour Plan: the threads, the runs (:mod:`.runs`) on the woven piece (:mod:`.model`), the plan's layers.
 
 The threads are the user's (``--colors black,#b22222,...``) or picked from
-the picture (``auto:N``, :func:`stringbot.planner.colour.palette.auto_palette`).
-The layers are wound in order of their lightness contrast with the board (CIE
-L*): the thread nearest the board's lightness first (at the bottom), the one
-farthest from it last (on top), where the darkest detail of a picture on a
-light board lies;
-of the six orders of three threads it was the best or within 0.1 CIEDE2000
-of the best on four test pictures (docs/planner.md, "Colour").  A thread
-that would lower the error nowhere gets no layer (the plan says so in
-``stats.unused``).
+the picture by what their mixes can reach (``auto:N``,
+:func:`stringbot.planner.colour.palette.auto_palette`).  The planner lays
+them in runs, a colour coming back as often as the spool-change budget
+allows (:func:`stringbot.planner.colour.runs.plan_runs`); each run is a
+layer of the plan file, in winding order.  A thread that never lowered the
+error gets no run (the plan says so in ``stats.unused``).
 """
 
 import logging
@@ -18,18 +15,20 @@ import time
 import numpy as np
 
 from ...errors import BadInput
-from ..chords import chord_pixels, chord_space
 from ..image import read_picture
-from .palette import WHITE, auto_palette, hex_to_rgb, to_linear
 from ..plan_file import Layer, Plan
 from ..progress import report
 from ..thread import ThreadModel
+from .palette import WHITE, auto_palette, hex_to_rgb, to_linear
+from .runs import RUN_DEFAULTS
 
 log = logging.getLogger(__name__)
 
-__all__ = ["plan_colour", "auto_colour_lines", "layer_order", "COLOUR_DEFAULTS"]
+__all__ = ["plan_colour", "auto_colour_lines", "COLOUR_DEFAULTS"]
 
-COLOUR_DEFAULTS = {"run": 25, "min_loop": 3, "sample": 1}
+COLOUR_DEFAULTS = {"spool_changes": RUN_DEFAULTS["spool_changes"], "min_run": RUN_DEFAULTS["min_run"]}
+#: most spool changes a plan may be given
+MAX_SPOOL_CHANGES = 500
 
 
 def auto_colour_lines(gray, mask, background, colors):
@@ -39,28 +38,16 @@ def auto_colour_lines(gray, mask, background, colors):
     measured from the board: ``500 + 10 x``, ``x`` the mean distance of the
     picture's gray from the board's.  Colour threads are lighter than black and
     each covers only its share of the picture, so a colour plan needs more
-    (docs/planner.md, "Colour": the error stops falling near 3 times the mono
-    rule on the test pictures).
+    (docs/planner.md, "Colour").
     """
     board = float(np.dot(hex_to_rgb(background), (0.299, 0.587, 0.114))) * 255.0
     x = float(np.abs(np.asarray(gray, dtype=np.float64)[mask] - board).mean())
     return int(round((500 + 10 * x) * min(len(colors), 3)))
 
 
-def layer_order(colors, background):
-    """Winding order: by lightness contrast with the board (CIE L*), the nearest first (at the bottom)."""
-    from .palette import lab
-
-    def contrast(c):
-        both = lab(to_linear(np.stack([hex_to_rgb(c), hex_to_rgb(background)])))
-        return abs(float(both[0, 0] - both[1, 0]))
-
-    return sorted(colors, key=contrast)
-
-
 def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=401, crop=None,
-                lines="auto", start_pin=None, model=None, cache=True, run=COLOUR_DEFAULTS["run"],
-                sample=COLOUR_DEFAULTS["sample"], order="contrast", picture=None, rng=None):
+                lines="auto", start_pin=None, model=None, cache=True, spool_changes=COLOUR_DEFAULTS["spool_changes"],
+                min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, **knobs):
     """Plan a colour thread painting.
 
     Parameters
@@ -72,22 +59,25 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     background : str
         The board, ``"#rrggbb"``.
     pins, frame, size, crop, lines
-        As for :func:`stringbot.planner.build.plan_picture`.
+        As for :func:`stringbot.planner.build.plan_picture` (``size``: the working grid).
     start_pin : int, optional
-        First pin of the first layer; None (default): each layer starts where
-        its best chord does (:func:`stringbot.planner.colour.model.first_pin`).
+        First pin of the first run; None (default): where its best chord is.
     model : ThreadModel, optional
         Frame and thread size (default 500 mm, 0.25 mm): how much of a pixel a thread covers.
     cache : bool
         Use the on-disk chord-pixel cache.
-    run, sample
-        Knobs of :func:`stringbot.planner.colour.model.joint_greedy`.
-    order : {"contrast", "given"}
-        Layer order: by contrast with the board, or as ``colors`` lists them.
+    spool_changes : int
+        Most spool changes (runs - 1); the colours come back in runs within it.
+    min_run : int
+        Fewest chords of a run before the spool may change.
+    weight : ndarray of float, shape (size, size), optional
+        Importance of each pixel (1: as any; 0 outside the frame is applied anyway).
     picture : Picture, optional
         An already read picture (with ``rgb``).
     rng : None, int or numpy Generator
         Seeds the pixel sample of ``auto`` colours (None: a fixed seed).
+    **knobs
+        The other knobs of :func:`stringbot.planner.colour.runs.plan_runs` (``check``, ``switch``, ``min_loop``).
 
     Returns
     -------
@@ -95,14 +85,21 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         A version 2 plan (unless one black layer on white).
     """
     from ..build import auto_lines, check_knobs, thread_length
-    from .model import ColourModel, chord_weights_px, joint_greedy, linear_colors
+    from ..chords import chord_pixels, chord_space
     from ..fitness import frame_mask
+    from .model import Piece, chord_weights_px, linear_colors
+    from .runs import plan_runs
 
     t0 = time.perf_counter()
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin or 0, method="fitness",
                 alpha=0.0, beta=None, gamma=None, T=None, epsilon=0, iterations=1, style=None)
-    if order not in ("contrast", "given"):
-        raise ValueError(f"order {order!r}; expected 'contrast' or 'given'")
+    if not (isinstance(spool_changes, int) and 0 <= spool_changes <= MAX_SPOOL_CHANGES):
+        raise BadInput(f"--spool-changes {spool_changes!r}; expected 0..{MAX_SPOOL_CHANGES}")
+    if not (isinstance(min_run, int) and min_run >= 1):
+        raise BadInput(f"--min-run {min_run!r}; expected a number of lines >= 1")
+    unknown = set(knobs) - set(RUN_DEFAULTS)
+    if unknown:
+        raise TypeError(f"unknown knobs {sorted(unknown)}")
     model = model or ThreadModel()
     report("reading the picture")
     pic = picture or read_picture(path, size=size, crop=crop, gray="luminance", rng=rng)
@@ -112,22 +109,23 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         report("picking threads")
         colors = auto_palette(pic.rgb, colors[1], background=background, mask=mask, rng=rng)
     colors = list(colors)
-    if order == "contrast":
-        colors = layer_order(colors, background)
     k = (auto_colour_lines(pic.gray, mask, background, colors) if lines == "auto" else int(lines))
     space = chord_space(pins, frame)
     report("chords")
     indptr, indices = chord_pixels(space, size, cache=cache)
     t_setup = time.perf_counter()
-    weights = chord_weights_px(space, size, model.width_px(size))
-    cm = ColourModel(to_linear(pic.rgb.reshape(-1, 3)), mask.ravel().astype(np.float32),
-                     to_linear(hex_to_rgb(background)), linear_colors(colors), nominal=float(np.median(weights)))
-    start_err = cm.error()
+    width = model.width_px(size)
+    weights = chord_weights_px(space, size, width)
+    w = mask.astype(np.float64) if weight is None else mask * np.asarray(weight, dtype=np.float64)
+    piece = Piece(to_linear(pic.rgb.reshape(-1, 3)), w.ravel(), to_linear(hex_to_rgb(background)),
+                  linear_colors(colors), space.pin_xy, width, nominal=float(np.median(weights)))
+    start_err = piece.error()
     report("colour")
-    seqs = joint_greedy(space, indptr, indices, cm, weights, k, run=run, sample=sample,
-                        start_pins=None if start_pin is None else [start_pin] + [None] * (len(colors) - 1))
-    layers = [Layer(c, s) for c, s in zip(colors, seqs) if len(s) >= 2]
-    unused = [c for c, s in zip(colors, seqs) if len(s) < 2]
+    runs = plan_runs(space, indptr, indices, weights, piece, k, spool_changes=spool_changes, min_run=min_run,
+                     first=start_pin, **knobs)
+    layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]
+    used = {lay.color for lay in layers}
+    unused = [c for c in colors if c not in used]
     if not layers:
         raise BadInput("no thread of --colors lowers the colour error anywhere: the picture looks like the "
                        f"board ({background}) already; expected a picture that differs from the board")
@@ -137,15 +135,20 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     params = {"pins": pins, "frame": frame, "size": size, "crop": pic.crop, "lines": lines, "lines_target": k,
               "start_pin": start_pin, "method": "colour",
               "colors_requested": (f"auto:{requested[1]}" if isinstance(requested, tuple) else list(requested)),
-              "colors": colors, "background": background, "order": order, "run": run, "sample": sample,
-              "min_loop": COLOUR_DEFAULTS["min_loop"], "mono_lines_rule": auto_lines(pic.gray, mask)}
+              "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
+              **{key: knobs.get(key, RUN_DEFAULTS[key]) for key in ("check", "switch", "min_loop")},
+              "mono_lines_rule": auto_lines(pic.gray, mask)}
+    per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
+                      "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c
+                                                                             for ch in lay.chords()]), 3)}
+                  for c in colors if c in used}
     stats = {"lines": drawn, "thread_diameters": round(thread_length(space.pin_xy, [c for lay in layers
                                                                                         for c in lay.chords()]), 3),
              "layers": [{"color": lay.color, "lines": len(lay.sequence) - 1,
                          "thread_diameters": round(thread_length(space.pin_xy, lay.chords()), 3)}
                         for lay in layers],
-             "unused": unused, "spool_changes": len(layers) - 1,
-             "model_error_start": round(start_err, 1), "model_error": round(cm.error(), 1),
+             "colors": per_colour, "unused": unused, "runs": len(layers), "spool_changes": len(layers) - 1,
+             "model_error_start": round(start_err, 1), "model_error": round(piece.error(), 1),
              "setup_seconds": round(t_setup - t0, 3), "seconds": round(time.perf_counter() - t0, 3)}
     return Plan.from_layers(layers, background=background, pins=pins, frame=frame, pin_xy=space.pin_xy,
                             crop=pic.crop, method="colour", parameters=params, source=pic.source, stats=stats,
