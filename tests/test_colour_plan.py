@@ -18,7 +18,8 @@ from stringbot.planner import Plan, read_plan, write_plan
 from stringbot.planner.colour.build import plan_colour
 from stringbot.planner.colour.render import colour_score, plan_layers
 from stringbot.planner.picture.read import read_picture
-from stringbot.planner.colour.palette import auto_palette, parse_background, parse_color, parse_colors, threads
+from stringbot.planner.colour.palette import parse_background, parse_color, parse_colors, threads
+from stringbot.planner.colour.reach import auto_palette
 from stringbot.planner.model.thread import ThreadModel
 
 
@@ -172,7 +173,7 @@ def test_cli_bad_colour_input_is_one_line_exit_2_and_writes_nothing(tmp_path, pi
 def test_auto_palette_finds_the_picture_s_threads(picture):
     pic = read_picture(picture, size=64)
     names = {v: k for k, v in threads().items()}
-    got = [names[c] for c in auto_palette(pic.rgb, 3)]
+    got = [names[c] for c in auto_palette(pic.rgb, 3).colors]
     assert len(set(got)) == 3
     assert "black" in got or "dark-gray" in got
     assert any(n in got for n in ("red", "crimson", "burgundy")) and any(n in got for n in ("blue", "navy"))

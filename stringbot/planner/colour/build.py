@@ -19,7 +19,8 @@ from ..image import read_picture
 from ..plan_file import Layer, Plan
 from ..progress import report
 from ..thread import ThreadModel
-from .palette import WHITE, auto_palette, hex_to_rgb, to_linear
+from .palette import WHITE, hex_to_rgb, to_linear
+from .reach import auto_palette, bare_share
 from .runs import RUN_DEFAULTS
 
 log = logging.getLogger(__name__)
@@ -105,12 +106,19 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     pic = picture or read_picture(path, size=size, crop=crop, gray="luminance", rng=rng)
     mask = frame_mask(size, frame)
     requested = colors
+    space = chord_space(pins, frame)
+    picked = None
     if isinstance(colors, tuple) and colors[0] == "auto":
         report("picking threads")
-        colors = auto_palette(pic.rgb, colors[1], background=background, mask=mask, rng=rng)
+        k = (auto_colour_lines(pic.gray, mask, background, range(colors[1])) if lines == "auto" else int(lines))
+        mean_chord = float(np.linalg.norm(space.pin_xy[space.ends[:, 0]] - space.pin_xy[space.ends[:, 1]],
+                                          axis=1).mean())
+        picked = auto_palette(pic.rgb, colors[1], background=background, mask=mask, rng=rng,
+                              candidates=colors[2] if len(colors) > 2 else None,
+                              bare=bare_share(k, mean_chord, model.fraction, frame))
+        colors = picked.colors
     colors = list(colors)
     k = (auto_colour_lines(pic.gray, mask, background, colors) if lines == "auto" else int(lines))
-    space = chord_space(pins, frame)
     report("chords")
     indptr, indices = chord_pixels(space, size, cache=cache)
     t_setup = time.perf_counter()
@@ -118,7 +126,8 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     weights = chord_weights_px(space, size, width)
     w = mask.astype(np.float64) if weight is None else mask * np.asarray(weight, dtype=np.float64)
     piece = Piece(to_linear(pic.rgb.reshape(-1, 3)), w.ravel(), to_linear(hex_to_rgb(background)),
-                  linear_colors(colors), space.pin_xy, width, nominal=float(np.median(weights)))
+                  linear_colors(colors), space.pin_xy, width, nominal=float(np.median(weights)),
+                  under=knobs.pop("under", False))
     start_err = piece.error()
     report("colour")
     runs = plan_runs(space, indptr, indices, weights, piece, k, spool_changes=spool_changes, min_run=min_run,
@@ -134,7 +143,8 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         log.info("colour: stopped after %d of %d lines (no chord lowers the error)", drawn, k)
     params = {"pins": pins, "frame": frame, "size": size, "crop": pic.crop, "lines": lines, "lines_target": k,
               "start_pin": start_pin, "method": "colour",
-              "colors_requested": (f"auto:{requested[1]}" if isinstance(requested, tuple) else list(requested)),
+              "colors_requested": (f"auto:{requested[1]}" + (":" + ",".join(requested[2]) if len(requested) > 2 else "")
+                                   if isinstance(requested, tuple) else list(requested)),
               "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
               **{key: knobs.get(key, RUN_DEFAULTS[key]) for key in ("check", "switch", "min_loop")},
               "mono_lines_rule": auto_lines(pic.gray, mask)}
@@ -147,7 +157,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
              "layers": [{"color": lay.color, "lines": len(lay.sequence) - 1,
                          "thread_diameters": round(thread_length(space.pin_xy, lay.chords()), 3)}
                         for lay in layers],
-             "colors": per_colour, "unused": unused, "runs": len(layers), "spool_changes": len(layers) - 1,
+             "colors": per_colour, "unused": unused,
+             **({"palette": {"reach": picked.reach, "bare": round(picked.bare, 3), "why_fewer": picked.why_fewer}}
+                if picked is not None else {}), "runs": len(layers), "spool_changes": len(layers) - 1,
              "model_error_start": round(start_err, 1), "model_error": round(piece.error(), 1),
              "setup_seconds": round(t_setup - t0, 3), "seconds": round(time.perf_counter() - t0, 3)}
     return Plan.from_layers(layers, background=background, pins=pins, frame=frame, pin_xy=space.pin_xy,

@@ -68,7 +68,7 @@ class Piece:
         A typical thread's share of a pixel: the change of the error is exact for it.
     """
 
-    def __init__(self, target, weight, board, colors, pin_xy, width_px, *, nominal=0.2):
+    def __init__(self, target, weight, board, colors, pin_xy, width_px, *, nominal=0.2, under=False):
         self.m = int(round(np.sqrt(len(target))))
         self.n = self.m * self.m
         self.target_lab = lab(np.asarray(target, dtype=np.float64))
@@ -85,6 +85,8 @@ class Piece:
         self.per_sample = 1.0 / (f * f)
         self.u = np.empty((self.n, 3))
         self.u[:] = self.board
+        self.under = bool(under)
+        self.bare = np.ones(self.n)                                        # share of the board showing
         self._mark = np.zeros(self.n, dtype=np.int64)
         # per colour and pixel, the error's change per unit of thread share (weighted)
         self.S = np.zeros((self.K, self.n), dtype=np.float32)
@@ -96,7 +98,10 @@ class Piece:
         u = self.u[p]
         pts = np.empty((self.K + 1, len(p), 3))
         pts[0] = u
-        pts[1:] = u + self.nominal * (self.colors[:, None, :] - u)
+        if self.under:   # a new thread lies under all: it shows only where the board did
+            pts[1:] = u + (self.nominal * self.bare[p])[:, None] * (self.colors[:, None, :] - self.board)
+        else:
+            pts[1:] = u + self.nominal * (self.colors[:, None, :] - u)
         d = lab(pts.reshape(-1, 3)).reshape(self.K + 1, len(p), 3) - self.target_lab[p]
         e = (d * d).sum(axis=-1)
         self.S[:, p] = (e[1:] - e[0]) * (self.weight[p] / self.nominal)
@@ -105,7 +110,7 @@ class Piece:
         """Lay a thread of colour ``k`` from pin ``a`` to pin ``b`` on top; returns the pixels it changed."""
         samples = self.stamp(self.pin_xy[a], self.pin_xy[b])
         old = self.top[samples]
-        moved = old != k + 1
+        moved = old == 0 if self.under else old != k + 1
         samples, old = samples[moved], old[moved]
         if not len(samples):
             return np.zeros(0, np.int64)
@@ -114,6 +119,7 @@ class Piece:
         delta = (self.colors[k] - self.palette[old]) * self.per_sample
         for ch in range(3):
             self.u[cells, ch] += np.bincount(inv, weights=delta[:, ch], minlength=len(cells))
+        self.bare[cells] -= np.bincount(inv, weights=(old == 0) * self.per_sample, minlength=len(cells))
         self.refresh(cells)
         return cells
 

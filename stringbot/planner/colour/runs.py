@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["plan_runs", "RUN_DEFAULTS"]
 
-RUN_DEFAULTS = {"spool_changes": 8, "min_run": 100, "check": 20, "switch": 1.0, "min_loop": 3}
+RUN_DEFAULTS = {"spool_changes": 8, "min_run": 100, "check": 20, "switch": 1.0, "min_loop": 3, "schedule": None, "lengths": None, "under": False}
 
 
 class _Fans:
@@ -58,14 +58,33 @@ class _Fans:
         return fan
 
 
-def _all_gains(S, indptr, indices, weights):
-    """Every chord's gain for one colour's ``S`` (negative: lowers the error)."""
-    return weights * np.add.reduceat(S.take(indices), indptr[:-1])
+class _Everywhere:
+    """Every chord's gain for a colour, judged by every ``stride``-th of its pixels, the best few again by all."""
+
+    def __init__(self, indptr, indices, weights, *, stride=4, exact=48):
+        counts = np.diff(indptr)
+        thin = (counts + stride - 1) // stride
+        self.indptr = np.concatenate([[0], np.cumsum(thin)])
+        pos = (np.arange(int(thin.sum())) - np.repeat(self.indptr[:-1], thin)) * stride + np.repeat(indptr[:-1], thin)
+        self.indices = indices[pos]
+        self.scale = weights * (counts / thin)
+        self.full = (indptr, indices, weights)
+        self.exact = int(exact)
+
+    def best(self, S, skip):
+        """``(gain, chord)`` of the chord that lowers the error most (``skip``: chords not to take)."""
+        g = self.scale * np.add.reduceat(S.take(self.indices), self.indptr[:-1])
+        g[skip] = np.inf
+        top = np.argpartition(g, self.exact)[:self.exact] if len(g) > self.exact else np.arange(len(g))
+        indptr, indices, weights = self.full
+        exact = [(float(weights[c] * S[indices[indptr[c]:indptr[c + 1]]].sum()), int(c)) for c in top
+                 if np.isfinite(g[c])]
+        return min(exact) if exact else (np.inf, -1)
 
 
 def plan_runs(space, indptr, indices, weights, piece, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"],
               min_run=RUN_DEFAULTS["min_run"], check=RUN_DEFAULTS["check"], switch=RUN_DEFAULTS["switch"],
-              min_loop=RUN_DEFAULTS["min_loop"], first=None):
+              min_loop=RUN_DEFAULTS["min_loop"], first=None, schedule=None, lengths=None, under=False):
     """Lay up to ``lines`` threads in runs (see the module notes).
 
     Parameters
@@ -102,11 +121,10 @@ def plan_runs(space, indptr, indices, weights, piece, lines, *, spool_changes=RU
     runs = []
     total = 0
 
+    everywhere = _Everywhere(indptr, indices, weights)
+
     def global_best(k):
-        g = _all_gains(piece.S[k], indptr, indices, weights)
-        g[laid[k]] = np.inf
-        c = int(np.argmin(g))
-        return float(g[c]), c
+        return everywhere.best(piece.S[k], laid[k])
 
     def lay(k, seq, a, b, chord):
         piece.lay(k, a, b)
@@ -131,6 +149,10 @@ def plan_runs(space, indptr, indices, weights, piece, lines, *, spool_changes=RU
         if not options:
             break
         k = min(options, key=lambda j: best[j][0])
+        if schedule is not None:
+            if len(runs) >= len(schedule):
+                break
+            k = schedule[len(runs)]
         chord = best[k][1]
         a, b = (int(p) for p in space.ends[chord])
         if first is not None and not runs:
@@ -152,13 +174,19 @@ def plan_runs(space, indptr, indices, weights, piece, lines, *, spool_changes=RU
             if total % 200 == 0:
                 report("colour", total, lines)
             n = len(seq) - 1
+            if lengths is not None:
+                if n >= lengths[len(runs)] and len(runs) < len(lengths) - 1:
+                    break
+                continue
             if K > 1 and n >= min_run and n % check == 0 and len(runs) < spool_changes \
                     and len(runs) <= spool_changes * total / lines:           # paced
-                best = [global_best(j) if j != k else (0.0, -1) for j in range(K)]
+                best = [global_best(j) for j in range(K)]
                 rival = min(best[j][0] for j in range(K) if j != k)
-                if rival < switch * float(np.mean(gains[-check:])):
+                if rival < switch * best[k][0]:
                     break
         runs.append((k, seq))
         current = k
         best = [global_best(j) for j in range(K)]
+    if piece.under:
+        runs = [(k, seq[::-1]) for k, seq in runs[::-1]]
     return runs
