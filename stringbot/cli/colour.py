@@ -47,7 +47,7 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     try:
         with reporting(shown):
             p = plan_colour(image, colors=palette, background=board, pins=pins, frame=frame,
-                            size=401 if size is None else size,
+                            size=COLOUR_DEFAULTS["size"] if size is None else size,
                             crop=parse_crop(crop) if crop else None, lines=lines,
                             start_pin=start_pin, model=model, cache=not no_cache,
                             spool_changes=COLOUR_DEFAULTS["spool_changes"] if spool_changes is None else spool_changes,

@@ -27,7 +27,14 @@ log = logging.getLogger(__name__)
 
 __all__ = ["plan_colour", "auto_colour_lines", "COLOUR_DEFAULTS"]
 
-COLOUR_DEFAULTS = {"spool_changes": RUN_DEFAULTS["spool_changes"], "min_run": RUN_DEFAULTS["min_run"]}
+COLOUR_DEFAULTS = {"spool_changes": RUN_DEFAULTS["spool_changes"], "min_run": RUN_DEFAULTS["min_run"], "size": 256}
+#: the draft's fine canvas: samples across a thread (about half a sample: it only orders the colours)
+DRAFT_SAMPLES = 0.5
+
+
+def draft_size(size):
+    """The draft's grid for a working grid of ``size`` px: half of it, at least 64 px (and at most ``size``)."""
+    return min(int(size), max(64, int(size) // 2))
 #: most spool changes a plan may be given
 MAX_SPOOL_CHANGES = 500
 
@@ -46,9 +53,9 @@ def auto_colour_lines(gray, mask, background, colors):
     return int(round((500 + 10 * x) * min(len(colors), 3)))
 
 
-def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=401, crop=None,
+def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=COLOUR_DEFAULTS["size"], crop=None,
                 lines="auto", start_pin=None, model=None, cache=True, spool_changes=COLOUR_DEFAULTS["spool_changes"],
-                min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, **knobs):
+                min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None):
     """Plan a colour thread painting.
 
     Parameters
@@ -77,8 +84,6 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         An already read picture (with ``rgb``).
     rng : None, int or numpy Generator
         Seeds the pixel sample of ``auto`` colours (None: a fixed seed).
-    **knobs
-        The other knobs of :func:`stringbot.planner.colour.runs.plan_runs` (``check``, ``switch``, ``min_loop``).
 
     Returns
     -------
@@ -88,8 +93,10 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     from ..build import auto_lines, check_knobs, thread_length
     from ..chords import chord_pixels, chord_space
     from ..fitness import frame_mask
+    from skimage.transform import resize
+
     from .model import Piece, chord_weights_px, linear_colors
-    from .runs import plan_runs
+    from .runs import Runner, plan_runs
 
     t0 = time.perf_counter()
     check_knobs(pins=pins, frame=frame, size=size, lines=lines, start_pin=start_pin or 0, method="fitness",
@@ -98,9 +105,6 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         raise BadInput(f"--spool-changes {spool_changes!r}; expected 0..{MAX_SPOOL_CHANGES}")
     if not (isinstance(min_run, int) and min_run >= 1):
         raise BadInput(f"--min-run {min_run!r}; expected a number of lines >= 1")
-    unknown = set(knobs) - set(RUN_DEFAULTS)
-    if unknown:
-        raise TypeError(f"unknown knobs {sorted(unknown)}")
     model = model or ThreadModel()
     report("reading the picture")
     pic = picture or read_picture(path, size=size, crop=crop, gray="luminance", rng=rng)
@@ -120,18 +124,31 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     colors = list(colors)
     k = (auto_colour_lines(pic.gray, mask, background, colors) if lines == "auto" else int(lines))
     report("chords")
-    indptr, indices = chord_pixels(space, size, cache=cache)
+    board, lin = to_linear(hex_to_rgb(background)), linear_colors(colors)
+
+    def runner(grid, rgb, *, samples=1.0):
+        """A :class:`Runner` on a ``grid``-px working grid (the picture ``rgb`` read at that size)."""
+        indptr, indices = chord_pixels(space, grid, cache=cache)
+        weights = chord_weights_px(space, grid, model.width_px(grid))
+        w = frame_mask(grid, frame).astype(np.float64)
+        if weight is not None:
+            w = w * (np.asarray(weight, dtype=np.float64) if grid == size else
+                     resize(np.asarray(weight, dtype=np.float64), (grid, grid), anti_aliasing=True))
+        piece = Piece(to_linear(rgb.reshape(-1, 3)), w.ravel(), board, lin, space.pin_xy, model.width_px(grid),
+                      nominal=float(np.median(weights)), samples=samples)
+        return Runner(space, indptr, indices, weights, piece)
+
+    grid = draft_size(size)
+    work = runner(size, pic.rgb)
+    start_err = work.piece.error()
     t_setup = time.perf_counter()
-    width = model.width_px(size)
-    weights = chord_weights_px(space, size, width)
-    w = mask.astype(np.float64) if weight is None else mask * np.asarray(weight, dtype=np.float64)
-    piece = Piece(to_linear(pic.rgb.reshape(-1, 3)), w.ravel(), to_linear(hex_to_rgb(background)),
-                  linear_colors(colors), space.pin_xy, width, nominal=float(np.median(weights)),
-                  under=knobs.pop("under", False))
-    start_err = piece.error()
     report("colour")
-    runs = plan_runs(space, indptr, indices, weights, piece, k, spool_changes=spool_changes, min_run=min_run,
-                     first=start_pin, **knobs)
+    if grid == size:
+        runs = plan_runs(work, None, k, spool_changes=spool_changes, min_run=min_run, first=start_pin)
+    else:
+        rgb = resize(pic.rgb, (grid, grid, 3), anti_aliasing=True)
+        runs = plan_runs(runner(grid, rgb, samples=DRAFT_SAMPLES), lambda: work, k, spool_changes=spool_changes,
+                         min_run=min_run, first=start_pin)
     layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]
     used = {lay.color for lay in layers}
     unused = [c for c in colors if c not in used]
@@ -146,7 +163,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
               "colors_requested": (f"auto:{requested[1]}" + (":" + ",".join(requested[2]) if len(requested) > 2 else "")
                                    if isinstance(requested, tuple) else list(requested)),
               "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
-              **{key: knobs.get(key, RUN_DEFAULTS[key]) for key in ("check", "switch", "min_loop")},
+              "draft_size": draft_size(size),
               "mono_lines_rule": auto_lines(pic.gray, mask)}
     per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
                       "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c
@@ -160,7 +177,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
              "colors": per_colour, "unused": unused,
              **({"palette": {"reach": picked.reach, "bare": round(picked.bare, 3), "why_fewer": picked.why_fewer}}
                 if picked is not None else {}), "runs": len(layers), "spool_changes": len(layers) - 1,
-             "model_error_start": round(start_err, 1), "model_error": round(piece.error(), 1),
+             "model_error_start": round(start_err, 1), "model_error": round(work.piece.error(), 1),
              "setup_seconds": round(t_setup - t0, 3), "seconds": round(time.perf_counter() - t0, 3)}
     return Plan.from_layers(layers, background=background, pins=pins, frame=frame, pin_xy=space.pin_xy,
                             crop=pic.crop, method="colour", parameters=params, source=pic.source, stats=stats,

@@ -29,7 +29,10 @@ import numpy as np
 from ..union import UnionStamp, fine_per_pixel, unique
 from .palette import hex_to_rgb, lab, to_linear
 
-__all__ = ["Piece", "chord_weights_px", "linear_colors"]
+__all__ = ["Piece", "chord_weights_px", "linear_colors", "LIGHTNESS"]
+
+#: the weight of lightness in the error, against 1 for each of a* and b* (docs/planner.md, "Colour")
+LIGHTNESS = 2.0
 
 
 def linear_colors(hex_colors):
@@ -68,7 +71,10 @@ class Piece:
         A typical thread's share of a pixel: the change of the error is exact for it.
     """
 
-    def __init__(self, target, weight, board, colors, pin_xy, width_px, *, nominal=0.2, under=False):
+    def __init__(self, target, weight, board, colors, pin_xy, width_px, *, nominal=0.2, lightness=LIGHTNESS,
+                 samples=1.0):
+        self._args = (target, weight, board, colors, pin_xy, width_px)
+        self._kw = dict(nominal=nominal, lightness=lightness, samples=samples)
         self.m = int(round(np.sqrt(len(target))))
         self.n = self.m * self.m
         self.target_lab = lab(np.asarray(target, dtype=np.float64))
@@ -76,41 +82,41 @@ class Piece:
         self.board = np.asarray(board, dtype=np.float64)
         self.colors = np.asarray(colors, dtype=np.float64)
         self.K = len(self.colors)
+        self.metric = np.array([float(lightness), 1.0, 1.0])
         self.nominal = float(nominal)
         self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
-        f = fine_per_pixel(width_px)
+        f = fine_per_pixel(width_px, samples=samples)
         self.stamp = UnionStamp(self.m, f, width_px)
         self.top = np.zeros(self.stamp.F * self.stamp.F, dtype=np.uint8)  # 0 board, k + 1 colour k
         self.palette = np.vstack([self.board[None], self.colors])         # by sample value
         self.per_sample = 1.0 / (f * f)
         self.u = np.empty((self.n, 3))
         self.u[:] = self.board
-        self.under = bool(under)
-        self.bare = np.ones(self.n)                                        # share of the board showing
         self._mark = np.zeros(self.n, dtype=np.int64)
         # per colour and pixel, the error's change per unit of thread share (weighted)
         self.S = np.zeros((self.K, self.n), dtype=np.float32)
         for lo in range(0, self.n, 65536):
             self.refresh(np.arange(lo, min(lo + 65536, self.n)))
 
+    def fresh(self):
+        """The same piece over the bare board."""
+        return Piece(*self._args, **self._kw)
+
     def refresh(self, p):
         """Recompute ``S`` at pixels ``p``: the exact change of the error for a typical thread of each colour."""
         u = self.u[p]
         pts = np.empty((self.K + 1, len(p), 3))
         pts[0] = u
-        if self.under:   # a new thread lies under all: it shows only where the board did
-            pts[1:] = u + (self.nominal * self.bare[p])[:, None] * (self.colors[:, None, :] - self.board)
-        else:
-            pts[1:] = u + self.nominal * (self.colors[:, None, :] - u)
+        pts[1:] = u + self.nominal * (self.colors[:, None, :] - u)
         d = lab(pts.reshape(-1, 3)).reshape(self.K + 1, len(p), 3) - self.target_lab[p]
-        e = (d * d).sum(axis=-1)
+        e = (d * d) @ self.metric
         self.S[:, p] = (e[1:] - e[0]) * (self.weight[p] / self.nominal)
 
     def lay(self, k, a, b):
         """Lay a thread of colour ``k`` from pin ``a`` to pin ``b`` on top; returns the pixels it changed."""
         samples = self.stamp(self.pin_xy[a], self.pin_xy[b])
         old = self.top[samples]
-        moved = old == 0 if self.under else old != k + 1
+        moved = old != k + 1
         samples, old = samples[moved], old[moved]
         if not len(samples):
             return np.zeros(0, np.int64)
@@ -119,11 +125,10 @@ class Piece:
         delta = (self.colors[k] - self.palette[old]) * self.per_sample
         for ch in range(3):
             self.u[cells, ch] += np.bincount(inv, weights=delta[:, ch], minlength=len(cells))
-        self.bare[cells] -= np.bincount(inv, weights=(old == 0) * self.per_sample, minlength=len(cells))
         self.refresh(cells)
         return cells
 
     def error(self):
         """Sum over pixels of the weighted squared CIELAB difference."""
         d = lab(self.u) - self.target_lab
-        return float((self.weight * (d * d).sum(axis=1)).sum())
+        return float((self.weight * ((d * d) @ self.metric)).sum())

@@ -3,24 +3,28 @@
 The planner lays threads in winding order on the :class:`~.model.Piece`, each
 new one on top.  A *run* is one continuous thread of one colour (a layer of
 the plan file); between two runs the maker changes the spool.  At most
-``spool_changes + 1`` runs, each at least ``min_run`` chords (the last one
-may be shorter: the line budget ends it).
+``spool_changes + 1`` runs.
 
-*A run.*  It starts at an end of the chord of its colour that lowers the
-error most, anywhere on the frame, and goes on from pin to pin, each time
-the chord from the current pin that lowers the error most (a chord is laid
-at most once in a colour; the last ``min_loop`` pins are not gone back to).
+1. *The draft* (:func:`free_runs`, on a coarser grid): every colour is its
+   own thread at its own pin, and each step lays the (colour, chord) that
+   lowers the error most, a colour once chosen going on for at least
+   ``min_run`` chords: the order the picture asks for, with as many spool
+   changes as that takes (40-70 on the test pictures).
+2. *The schedule* (:func:`fit_schedule`): the draft's runs merged down to the
+   budget, the shortest first: a run goes, its lines to the nearest run of
+   its colour, so that each colour keeps its share of the lines and roughly
+   its place in the order; the last run of a colour goes only when there are
+   more colours than runs.
+3. *The plan* (:func:`follow`, on the working grid): each run of the schedule
+   in turn, for its share of the lines.  A run starts at an end of the chord
+   of its colour that lowers the error most, anywhere on the frame, and goes
+   on from pin to pin, each time the chord from the current pin that lowers
+   the error most; it ends early when none does (its lines pass to the next
+   run).
 
-*When to change the spool, and to which colour.*  Every ``check`` chords of
-a run (once it has ``min_run``), the best chord of every other colour
-anywhere on the frame is weighed against what the current thread has been
-doing (its mean gain over those last chords); the spool is changed when
-another colour's best chord would lower the error more than ``switch`` times
-that, and the budget allows: the changes are paced over the line budget, so
-that by a share ``x`` of the lines at most ``1 + x * spool_changes`` of them
-are spent (a change is left for the end's detail).  The next run is the
-colour whose best chord is the best then.  A run whose colour has nothing
-left to lay ends at once.
+A chord is laid at most once in a colour; the last ``min_loop`` pins are not
+gone back to.  When the draft already keeps to the budget and was drawn on
+the working grid, it is the plan.
 """
 
 import logging
@@ -31,9 +35,9 @@ from ..progress import report
 
 log = logging.getLogger(__name__)
 
-__all__ = ["plan_runs", "RUN_DEFAULTS"]
+__all__ = ["Runner", "free_runs", "fit_schedule", "follow", "plan_runs", "RUN_DEFAULTS"]
 
-RUN_DEFAULTS = {"spool_changes": 8, "min_run": 100, "check": 20, "switch": 1.0, "min_loop": 3, "schedule": None, "lengths": None, "under": False}
+RUN_DEFAULTS = {"spool_changes": 8, "min_run": 100, "min_loop": 3}
 
 
 class _Fans:
@@ -82,31 +86,168 @@ class _Everywhere:
         return min(exact) if exact else (np.inf, -1)
 
 
-def plan_runs(space, indptr, indices, weights, piece, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"],
-              min_run=RUN_DEFAULTS["min_run"], check=RUN_DEFAULTS["check"], switch=RUN_DEFAULTS["switch"],
-              min_loop=RUN_DEFAULTS["min_loop"], first=None, schedule=None, lengths=None, under=False):
-    """Lay up to ``lines`` threads in runs (see the module notes).
+class Runner:
+    """Threads laid on a :class:`~.model.Piece` by the chords of a working grid.
 
     Parameters
     ----------
     space : ChordSpace
     indptr, indices : ndarray
-        Chord pixels on the working grid (:func:`stringbot.planner.chords.chord_pixels`).
+        Chord pixels on the piece's grid (:func:`stringbot.planner.chords.chord_pixels`).
     weights : ndarray of float, shape (m,)
         Each chord's share of its pixels (:func:`~.model.chord_weights_px`).
     piece : Piece
         Updated in place.
+    min_loop : int
+        A thread never goes back to its last ``min_loop`` pins.
+    """
+
+    def __init__(self, space, indptr, indices, weights, piece, *, min_loop=RUN_DEFAULTS["min_loop"]):
+        self.space, self.piece, self.min_loop = space, piece, int(min_loop)
+        self.fans = _Fans(space, indptr, indices, weights)
+        self.everywhere = _Everywhere(indptr, indices, weights)
+        self.laid = np.zeros((piece.K, space.m), dtype=bool)   # a chord is laid once in a colour
+        self.lines = 0
+
+    def fresh(self):
+        """A runner on the same grid over the bare board."""
+        out = Runner.__new__(Runner)
+        out.space, out.piece, out.min_loop = self.space, self.piece.fresh(), self.min_loop
+        out.fans, out.everywhere = self.fans, self.everywhere
+        out.laid = np.zeros_like(self.laid)
+        out.lines = 0
+        return out
+
+    def anywhere(self, k):
+        """``(gain, chord)``: colour ``k``'s chord that lowers the error most, anywhere."""
+        return self.everywhere.best(self.piece.S[k], self.laid[k])
+
+    def step(self, k, seq):
+        """``(gain, next pin, chord)``: colour ``k``'s best chord from the end of ``seq``."""
+        others, chords, pix, starts, w = self.fans.get(seq[-1])
+        gain = w * np.add.reduceat(self.piece.S[k].take(pix), starts)
+        gain[self.laid[k, chords]] = np.inf
+        for q in seq[-self.min_loop:]:
+            i = int(np.searchsorted(others, q))
+            if i < len(others) and others[i] == q:
+                gain[i] = np.inf
+        i = int(np.argmin(gain))
+        return float(gain[i]), int(others[i]), int(chords[i])
+
+    def lay(self, k, seq, nxt, chord):
+        """Lay colour ``k``'s thread from the end of ``seq`` to pin ``nxt`` (chord ``chord``) on top."""
+        self.piece.lay(k, seq[-1], nxt)
+        self.laid[k, chord] = True
+        seq.append(nxt)
+        self.lines += 1
+
+    def start(self, k, first=None):
+        """A new thread of colour ``k``: ``[pin]``, at an end of its best chord (or at ``first``)."""
+        if first is not None:
+            return [int(first)]
+        gain, chord = self.anywhere(k)
+        return None if chord < 0 or gain >= 0 else [int(self.space.ends[chord, 0])]
+
+
+def free_runs(runner, lines, *, min_run=RUN_DEFAULTS["min_run"]):
+    """The draft: each step the best (colour, chord), every colour its own thread (see the module notes).
+
+    Returns
+    -------
+    list of (int, list of int)
+        ``(colour, pins)`` of each run, in winding order (a colour's runs continue one thread).
+    """
+    K = runner.piece.K
+    seqs = [runner.start(k) for k in range(K)]
+    runs, active = [], -1
+    while runner.lines < lines:
+        move = None
+        if active >= 0 and len(runs[-1][1]) - 1 < min_run:
+            move = runner.step(active, seqs[active]) + (active,)
+        if move is None or move[0] >= 0:
+            options = [runner.step(k, seqs[k]) + (k,) for k in range(K) if seqs[k] is not None]
+            move = min(options, default=None)
+        if move is None or move[0] >= 0:
+            break
+        gain, nxt, chord, k = move
+        if k != active:
+            runs.append((k, [seqs[k][-1]]))
+            active = k
+        runner.lay(k, seqs[k], nxt, chord)
+        runs[-1][1].append(nxt)
+        if runner.lines % 200 == 0:
+            report("colour (draft)", runner.lines, lines)
+    return runs
+
+
+def fit_schedule(runs, most):
+    """The draft's runs ``[(colour, pins)]`` merged down to at most ``most`` runs: ``[(colour, lines)]``.
+
+    The shortest run goes first, its lines to the nearest run of its colour; a
+    colour's last run goes only while there are more colours than runs.
+    """
+    sched = _tidy([[k, len(seq) - 1] for k, seq in runs])
+    while len(sched) > most:
+        colours = [k for k, _ in sched]
+        movable = [j for j in range(len(sched)) if colours.count(colours[j]) > 1] or list(range(len(sched)))
+        i = min(movable, key=lambda j: (sched[j][1], j))
+        k, n = sched[i]
+        same = [j for j in range(len(sched)) if j != i and colours[j] == k]
+        if same:
+            sched[min(same, key=lambda j: (abs(j - i), j))][1] += n
+        del sched[i]
+        sched = _tidy(sched)
+    return [(k, n) for k, n in sched]
+
+
+def _tidy(sched):
+    """Neighbouring runs of one colour joined, empty ones left out."""
+    out = []
+    for k, n in sched:
+        if out and out[-1][0] == k:
+            out[-1][1] += n
+        elif n > 0:
+            out.append([k, n])
+    return out
+
+
+def follow(runner, lines, schedule, *, first=None):
+    """Lay the runs of ``schedule`` ``[(colour, lines)]`` in turn (see the module notes); returns the runs."""
+    runs, spare = [], 0
+    for j, (k, n) in enumerate(schedule):
+        want = n + spare if j < len(schedule) - 1 else lines - runner.lines
+        seq = runner.start(k, first if not runs else None)
+        if seq is None:
+            spare = want
+            continue
+        while len(seq) - 1 < want and runner.lines < lines:
+            gain, nxt, chord = runner.step(k, seq)
+            if gain >= 0:
+                break
+            runner.lay(k, seq, nxt, chord)
+            if runner.lines % 200 == 0:
+                report("colour", runner.lines, lines)
+        spare = want - (len(seq) - 1)
+        if len(seq) >= 2:
+            runs.append((k, seq))
+    return runs
+
+
+def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"], min_run=RUN_DEFAULTS["min_run"],
+              first=None):
+    """Lay up to ``lines`` threads in at most ``spool_changes + 1`` runs (see the module notes).
+
+    Parameters
+    ----------
+    draft : Runner
+        On the draft's grid (it is used up).
+    final : callable or None
+        ``final()``: a fresh :class:`Runner` on the working grid; None: the draft's grid is the working grid.
     lines : int
         Line budget over all runs.
     spool_changes : int
-        Budget of spool changes (runs - 1), >= 0.
     min_run : int
-        Chords a run lays at least before the spool may change.
-    check : int
-        Chords between two looks at the other colours.
-    switch : float
-        Another colour's best chord must beat the current thread's recent mean gain by this factor.
-    min_loop : int
+        Fewest chords of a run of the draft before another colour may take over.
     first : int, optional
         The first run's first pin (None: where its best chord is).
 
@@ -115,78 +256,12 @@ def plan_runs(space, indptr, indices, weights, piece, lines, *, spool_changes=RU
     list of (int, list of int)
         ``(colour index, pin sequence)`` of each run, in winding order.
     """
-    K = piece.K
-    fans = _Fans(space, indptr, indices, weights)
-    laid = np.zeros((K, space.m), dtype=bool)
-    runs = []
-    total = 0
-
-    everywhere = _Everywhere(indptr, indices, weights)
-
-    def global_best(k):
-        return everywhere.best(piece.S[k], laid[k])
-
-    def lay(k, seq, a, b, chord):
-        piece.lay(k, a, b)
-        laid[k, chord] = True
-        seq.append(b)
-
-    def step(k, seq):
-        others, chords, pix, starts, w = fans.get(seq[-1])
-        gain = w * np.add.reduceat(piece.S[k].take(pix), starts)
-        gain[laid[k, chords]] = np.inf
-        for q in seq[-min_loop:]:
-            i = int(np.searchsorted(others, q))
-            if i < len(others) and others[i] == q:
-                gain[i] = np.inf
-        i = int(np.argmin(gain))
-        return float(gain[i]), int(others[i]), int(chords[i])
-
-    best = [global_best(k) for k in range(K)]
-    current = None
-    while total < lines and len(runs) <= spool_changes:
-        options = [k for k in range(K) if k != current and best[k][0] < 0]
-        if not options:
-            break
-        k = min(options, key=lambda j: best[j][0])
-        if schedule is not None:
-            if len(runs) >= len(schedule):
-                break
-            k = schedule[len(runs)]
-        chord = best[k][1]
-        a, b = (int(p) for p in space.ends[chord])
-        if first is not None and not runs:
-            a = int(first)
-            gain, b, chord = step(k, [a])
-            if gain >= 0:
-                break
-        seq = [a]
-        lay(k, seq, a, b, chord)
-        total += 1
-        gains = []
-        while total < lines:
-            gain, nxt, chord = step(k, seq)
-            if gain >= 0:
-                break
-            lay(k, seq, seq[-1], nxt, chord)
-            total += 1
-            gains.append(gain)
-            if total % 200 == 0:
-                report("colour", total, lines)
-            n = len(seq) - 1
-            if lengths is not None:
-                if n >= lengths[len(runs)] and len(runs) < len(lengths) - 1:
-                    break
-                continue
-            if K > 1 and n >= min_run and n % check == 0 and len(runs) < spool_changes \
-                    and len(runs) <= spool_changes * total / lines:           # paced
-                best = [global_best(j) for j in range(K)]
-                rival = min(best[j][0] for j in range(K) if j != k)
-                if rival < switch * best[k][0]:
-                    break
-        runs.append((k, seq))
-        current = k
-        best = [global_best(j) for j in range(K)]
-    if piece.under:
-        runs = [(k, seq[::-1]) for k, seq in runs[::-1]]
-    return runs
+    runs = free_runs(draft, lines, min_run=min_run)
+    if final is None and first is None and len(runs) <= spool_changes + 1:
+        return runs
+    schedule = fit_schedule(runs, spool_changes + 1)
+    total = sum(n for _, n in schedule)
+    if total:
+        schedule = [(k, max(1, int(round(n * lines / total)))) for k, n in schedule]
+    log.info("colour: the draft's %d runs fitted to %d: %s", len(runs), len(schedule), schedule)
+    return follow(final() if final is not None else draft.fresh(), lines, schedule, first=first)
