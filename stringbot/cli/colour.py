@@ -28,7 +28,7 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     from ..planner.colour.build import COLOUR_DEFAULTS, plan_colour
     from ..planner.colour.palette import WHITE, parse_background, parse_colors
     from ..planner.colour.render import PREVIEW_SAMPLES, plan_layers, woven_rgb
-    from ..planner.image import parse_crop
+    from ..planner.picture.read import parse_crop
     from ..planner.progress import reporting
     from .planning import PREVIEW_SIZE, check_plan_outputs, warn_small_crop
     from .progress import PlanProgress
@@ -129,7 +129,7 @@ def render_colour(plan, output, size):
 def score_colour(plan, plan_path, image):
     """The colour score of any plan (a mono plan is black thread on white) against IMAGE at 512 px."""
     from ..planner.colour.render import SCORE_SIZE, colour_score, plan_layers
-    from ..planner.image import read_picture
+    from ..planner.picture.read import read_picture
 
     pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
     return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background,

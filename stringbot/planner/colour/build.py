@@ -15,10 +15,10 @@ import time
 import numpy as np
 
 from ...errors import BadInput
-from ..image import read_picture
+from ..picture.read import read_picture
 from ..plan_file import Layer, Plan
 from ..progress import report
-from ..thread import ThreadModel
+from ..model.thread import ThreadModel
 from .palette import WHITE, hex_to_rgb, to_linear
 from .reach import auto_palette, bare_share
 from .runs import RUN_DEFAULTS
@@ -91,8 +91,8 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         A version 2 plan (unless one black layer on white).
     """
     from ..build import auto_lines, check_knobs, thread_length
-    from ..chords import chord_pixels, chord_space
-    from ..fitness import frame_mask
+    from ..model.chords import chord_pixels, chord_space
+    from ..model.chords import frame_mask
     from skimage.transform import resize
 
     from .model import Piece, chord_weights_px, linear_colors

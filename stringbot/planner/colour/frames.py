@@ -1,6 +1,6 @@
 """A colour plan growing in winding order: frames for ``stringbot animate``.
 
-As :func:`stringbot.planner.frames.growth_frames` draws a one-thread plan, but
+As :func:`stringbot.planner.model.frames.growth_frames` draws a one-thread plan, but
 each chord in its layer's colour over the plan's board: a pixel crossed ``m``
 times by threads of colour ``C`` keeps ``(1 - s) ** m`` of what lay under it
 and takes ``1 - (1 - s) ** m`` of ``C`` (``s``, a thread's share of a pixel),
@@ -11,7 +11,7 @@ the opposite colour of its thread, the pins in gray.
 
 import numpy as np
 
-from ..frames import chord_pixels, frame_ends
+from ..model.frames import chord_pixels, frame_ends
 from .palette import hex_to_rgb, to_linear, to_srgb
 
 __all__ = ["colour_growth_frames"]

@@ -1,10 +1,10 @@
 """The woven piece in colour, as the planner keeps it: sharp threads, the later one on top.
 
 The physical model is the reference rendering's
-(:func:`stringbot.planner.reference.reference_shares`): a thread is a band of
+(:func:`stringbot.planner.model.reference.reference_shares`): a thread is a band of
 its real width with a sharp edge, and it hides what it covers.  The planner
 keeps it on a fine canvas of ``f x f`` samples per working pixel (the
-thread about one sample wide, :class:`stringbot.planner.union.UnionStamp`),
+thread about one sample wide, :class:`stringbot.planner.model.union.UnionStamp`),
 each sample holding the colour on top there (0: the board).  The planner
 lays threads in winding order, so a new thread always lies on top: the
 samples it covers take its colour, and each working pixel's colour ``u``
@@ -26,7 +26,7 @@ misjudged a light thread on a dark board; docs/planner.md, "Colour".)
 
 import numpy as np
 
-from ..union import UnionStamp, fine_per_pixel, unique
+from ..model.union import UnionStamp, fine_per_pixel, unique
 from .palette import hex_to_rgb, lab, to_linear
 
 __all__ = ["Piece", "chord_weights_px", "linear_colors", "LIGHTNESS"]
@@ -42,7 +42,7 @@ def linear_colors(hex_colors):
 
 def chord_weights_px(space, size, width_px):
     """Share of each pixel of its 1-pixel line a chord covers: ``width_px * sqrt(1 + slope^2)`` (< 1)."""
-    from ..chords import pin_pixels
+    from ..model.chords import pin_pixels
 
     rc = pin_pixels(space.pin_xy, size).astype(np.float64)
     d = np.abs(rc[space.ends[:, 1]] - rc[space.ends[:, 0]])

@@ -1,7 +1,7 @@
 """A colour plan as it will hang, and how far it is from the picture.
 
 **As woven** (:func:`woven_rgb`): the reference rendering
-(:func:`stringbot.planner.reference.reference_shares`) in colour.  Every
+(:func:`stringbot.planner.model.reference.reference_shares`) in colour.  Every
 thread is a band of its real width with a sharp edge; the layers lie in
 winding order, later ones on top, and a thread hides what it covers: each
 sample of the fine canvas shows the colour of the last thread over it, or the
@@ -11,7 +11,7 @@ or to compare.  A plan whose colour comes back in a later run is drawn as
 wound: the later run lies over everything wound before it.
 
 **The colour score** (:func:`colour_score`), the neutral yardstick of the
-mono planner (:mod:`stringbot.planner.scoring`) in colour: the plan drawn as
+mono planner (:mod:`stringbot.planner.model.scoring`) in colour: the plan drawn as
 woven at 512 x 512 and the picture's crop read at 512 x 512 (the board's
 colour outside a circular frame), both Gaussian-blurred with sigma 2 pixels
 in linear light (as the eye averages), then
@@ -21,9 +21,9 @@ in linear light (as the eye averages), then
   difference);
 * ``ssim`` / ``ssim_blurred`` (and ``ssim_uniform`` / ``ssim_uniform_blurred``,
   scikit-image's default window): the SSIM of the luminances of the two (the
-  neutral yardstick's gray, :data:`stringbot.planner.scoring.LUMINANCE` on the
+  neutral yardstick's gray, :data:`stringbot.planner.model.scoring.LUMINANCE` on the
   sRGB values), unblurred and blurred, as
-  :func:`stringbot.planner.scoring.ssim_pair` computes them.
+  :func:`stringbot.planner.model.scoring.ssim_pair` computes them.
 """
 
 import numpy as np
@@ -58,7 +58,7 @@ def woven_shares(layers, pin_xy, *, size, thread_fraction, samples=None, rows=No
     thread_fraction : float
         The thread's width as a fraction of the frame (a plan's ``thread_model().fraction``).
     samples : float, optional
-        Samples across a thread (default: the reference's, :data:`~stringbot.planner.reference.SAMPLES_PER_WIDTH`).
+        Samples across a thread (default: the reference's, :data:`~stringbot.planner.model.reference.SAMPLES_PER_WIDTH`).
     rows : (int, int), optional
         Only those output rows.
 
@@ -69,7 +69,7 @@ def woven_shares(layers, pin_xy, *, size, thread_fraction, samples=None, rows=No
     shares : ndarray of float32, shape (len(colors), size, size)
         The share of each pixel where that colour is on top.
     """
-    from ..reference import SAMPLES_PER_WIDTH, reference_shares
+    from ..model.reference import SAMPLES_PER_WIDTH, reference_shares
 
     colors = list(dict.fromkeys(c for c, _ in layers))
     return colors, reference_shares([chords for _, chords in layers], pin_xy, size=size,
@@ -111,7 +111,7 @@ def woven_rgb(layers, pin_xy, *, background=WHITE, size=1001, thread_fraction=No
     ndarray of float64, shape (size, size, 3)
         In [0, 1].
     """
-    from ..thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM
+    from ..model.thread import DEFAULT_DIAMETER_MM, DEFAULT_THREAD_MM
 
     fraction = DEFAULT_THREAD_MM / DEFAULT_DIAMETER_MM if thread_fraction is None else float(thread_fraction)
     layers = [(c, ch) for c, ch in layers if len(ch)]
@@ -127,7 +127,7 @@ def _blurred(linear_rgb, sigma):
 
 
 def _luminance(linear_rgb):
-    from ..scoring import LUMINANCE
+    from ..model.scoring import LUMINANCE
 
     return to_srgb(linear_rgb) @ np.asarray(LUMINANCE, dtype=np.float64)
 
@@ -155,8 +155,8 @@ def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE, thread
     """
     from skimage.color import deltaE_ciede2000, rgb2lab
 
-    from ..fitness import frame_mask
-    from ..scoring import ssim_pair
+    from ..model.chords import frame_mask
+    from ..model.scoring import ssim_pair
 
     pic = np.asarray(picture_rgb, dtype=np.float64)
     if pic.shape != (SCORE_SIZE, SCORE_SIZE, 3):

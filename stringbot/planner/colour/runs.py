@@ -93,7 +93,7 @@ class Runner:
     ----------
     space : ChordSpace
     indptr, indices : ndarray
-        Chord pixels on the piece's grid (:func:`stringbot.planner.chords.chord_pixels`).
+        Chord pixels on the piece's grid (:func:`stringbot.planner.model.chords.chord_pixels`).
     weights : ndarray of float, shape (m,)
         Each chord's share of its pixels (:func:`~.model.chord_weights_px`).
     piece : Piece
