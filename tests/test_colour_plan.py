@@ -271,7 +271,9 @@ def test_animate_draws_each_layer_in_its_colour_a_later_one_on_top(tmp_path, cap
     from PIL import Image
     path, gif = tmp_path / "c.json", tmp_path / "a.gif"
     # pins 0 (top) -> 150 (bottom): red, vertical; then 75 (right) -> 225 (left) -> 0: blue, across it
-    write_plan(colour_plan(layers=[("#c8102e", [0, 150]), ("#1f5bb5", [75, 225, 0])]), path)
+    plan = colour_plan(layers=[("#c8102e", [0, 150]), ("#1f5bb5", [75, 225, 0])])
+    plan.diameter_mm, plan.thread_mm = 100.0, 1.0          # a thread 10 px wide: its middle covers whole pixels
+    write_plan(plan, path)
     code, _, err = run(["animate", str(path), "-o", str(gif), "--frames", "3", "--size", "1001"], capsys)
     assert code == 0, err
     im = Image.open(gif)

@@ -85,14 +85,13 @@ def png_rgb_bytes(rgb):
     """PNG bytes of an sRGB float image in [0, 1], marked as stringbot's (:func:`~stringbot._files.mark_png`)."""
     import io
 
-    import numpy as np
     from PIL import Image
 
     from .._files import mark_png
+    from ..planner.colour.render import to_uint8
 
     buf = io.BytesIO()
-    Image.fromarray(np.clip(np.rint(np.asarray(rgb) * 255.0), 0, 255).astype(np.uint8), "RGB").save(
-        buf, format="PNG", compress_level=3)
+    Image.fromarray(to_uint8(rgb), "RGB").save(buf, format="PNG", compress_level=3)
     return mark_png(buf.getvalue())             # stringbot's: a later plan or render may replace it
 
 

@@ -179,6 +179,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
                 if picked is not None else {}), "runs": len(layers), "spool_changes": len(layers) - 1,
              "model_error_start": round(start_err, 1), "model_error": round(work.piece.error(), 1),
              "setup_seconds": round(t_setup - t0, 3), "seconds": round(time.perf_counter() - t0, 3)}
-    return Plan.from_layers(layers, background=background, pins=pins, frame=frame, pin_xy=space.pin_xy,
+    # pin_xy as the plan file holds it (6 decimals): the preview drawn from this plan is the one any reader draws
+    return Plan.from_layers(layers, background=background, pins=pins, frame=frame, pin_xy=np.round(space.pin_xy, 6),
                             crop=pic.crop, method="colour", parameters=params, source=pic.source, stats=stats,
                             diameter_mm=model.diameter_mm, thread_mm=model.thread_mm)

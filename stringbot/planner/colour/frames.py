@@ -1,24 +1,24 @@
 """A colour plan growing in winding order: frames for ``stringbot animate``.
 
-As :func:`stringbot.planner.model.frames.growth_frames` draws a one-thread plan, but
-each chord in its layer's colour over the plan's board: a pixel crossed ``m``
-times by threads of colour ``C`` keeps ``(1 - s) ** m`` of what lay under it
-and takes ``1 - (1 - s) ** m`` of ``C`` (``s``, a thread's share of a pixel),
-in winding order, so a later layer covers an earlier one as on the board.
-Composited in linear light, as ``render`` does.  The newest chord is drawn in
-the opposite colour of its thread, the pins in gray.
+Each frame is the reference rendering in colour (:mod:`.render`) of the
+chords wound by then, drawn as the preview is drawn (``PREVIEW_SAMPLES``
+across a thread): the threads are painted one by one, in winding order, on
+a fine canvas holding the colour on top at each sample (a later thread hides
+what it covers), and each frame is the canvas box-filtered to the frame's
+size, composited over the board in linear light.  So the last frame is the
+preview drawn at that size, pixel for pixel (``tests/test_colour_wind.py``).
+On every frame but the last the newest chord is marked in the opposite colour
+of its thread and the pins in gray.
 """
 
 import numpy as np
 
 from ..model.frames import chord_pixels, frame_ends
-from .palette import hex_to_rgb, to_linear, to_srgb
+from ..model.reference import fine_factor, thread_samples
+from .palette import hex_to_rgb
+from .render import PREVIEW_SAMPLES, compose, to_uint8
 
 __all__ = ["colour_growth_frames"]
-
-
-def _linear(hex_color):
-    return to_linear(np.asarray(hex_to_rgb(hex_color), dtype=float))
 
 
 def colour_growth_frames(plan, *, frames=100, size=400):
@@ -38,28 +38,39 @@ def colour_growth_frames(plan, *, frames=100, size=400):
     (ndarray, int)
         The frame and the number of chords it shows.
     """
+    fraction = plan.thread_model().fraction
+    k = fine_factor(size, fraction, samples=PREVIEW_SAMPLES)
+    F = size * k
+    half = fraction * F / 2.0
+    colors = list(dict.fromkeys(plan.colors))
+    chords = [(colors.index(lay.color) + 1, a, b) for lay in plan.layers for a, b in lay.chords()]
+    top = np.zeros(F * F, dtype=np.uint8)                      # the colour on top at each sample, 0 the board
+    counts = np.zeros((len(colors) + 1, size * size), dtype=np.int32)
+    counts[0] = k * k
+    xy = np.asarray(plan.pin_xy, dtype=np.float64)
     flat, starts, ring = chord_pixels(plan, size)
-    layer_of = np.concatenate([np.full(max(len(lay.sequence) - 1, 0), k, dtype=np.int64)
-                               for k, lay in enumerate(plan.layers)] or [np.zeros(0, dtype=np.int64)])
-    colors = [_linear(lay.color) for lay in plan.layers]
-    keep = 1.0 - min(1.0, size / 1001.0)        # what a pixel keeps under one thread (as growth_frames)
-    canvas = np.tile(_linear(plan.background), (size * size, 1))
     done = 0
-    for end in frame_ends(len(starts) - 1, frames):
-        a = done
-        while a < end:                          # the new chords, layer by layer
-            k = layer_of[a]
-            b = a
-            while b < end and layer_of[b] == k:
-                b += 1
-            m = np.bincount(flat[starts[a]:starts[b]], minlength=size * size)
-            left = keep ** m
-            canvas = canvas * left[:, None] + colors[k][None, :] * (1.0 - left)[:, None]
-            a = b
+    ends = frame_ends(len(chords), frames)
+    for end in ends:
+        lost, won = [], []                                    # (colour, pixel) of each sample that changed
+        for c, a, b in chords[done:end]:
+            s = thread_samples(xy[a], xy[b], F, half)
+            old = top[s]
+            moved = old != c
+            s, old = s[moved], old[moved]
+            cells = (s // (F * k)) * size + (s % F) // k
+            lost.append(old.astype(np.int64) * (size * size) + cells)
+            won.append(c * (size * size) + cells)
+            top[s] = c
+        if lost:
+            n = counts.size
+            counts -= np.bincount(np.concatenate(lost), minlength=n).reshape(counts.shape).astype(np.int32)
+            counts += np.bincount(np.concatenate(won), minlength=n).reshape(counts.shape).astype(np.int32)
         done = end
-        frame = np.rint(np.clip(to_srgb(canvas), 0.0, 1.0) * 255.0).astype(np.uint8)
-        frame[ring] = np.minimum(frame[ring], 170)
-        if end:
-            newest = hex_to_rgb(plan.layers[layer_of[end - 1]].color)        # sRGB in [0, 1]
+        shares = counts[1:].astype(np.float32) * np.float32(1.0 / (k * k))   # as the reference box-filters
+        frame = to_uint8(compose(colors, shares, plan.background), linear=True)
+        if end and end != ends[-1]:
+            frame[ring] = np.minimum(frame[ring], 170)
+            newest = hex_to_rgb(colors[chords[end - 1][0] - 1])        # sRGB in [0, 1]
             frame[flat[starts[end - 1]:starts[end]]] = np.rint(255.0 * (1.0 - newest)).astype(np.uint8)
         yield frame.reshape(size, size, 3), end

@@ -23,7 +23,8 @@ import numpy as np
 
 from ...errors import BadInput
 
-__all__ = ["lab", "threads", "describe_color", "parse_color", "parse_colors", "parse_background", "to_linear", "to_srgb",
+__all__ = ["lab", "threads", "describe_color", "parse_color", "parse_colors", "parse_background", "to_linear",
+           "to_srgb",
            "hex_to_rgb", "rgb_to_hex", "color_name", "delta_e", "BLACK", "WHITE", "MAX_COLORS",
            "MIN_DELTA_E"]
 

@@ -30,8 +30,8 @@ import numpy as np
 
 from .palette import WHITE, hex_to_rgb, to_linear, to_srgb
 
-__all__ = ["woven_rgb", "woven_shares", "colour_score", "plan_layers", "SCORE_SIZE", "BLUR_SIGMA",
-           "PREVIEW_SAMPLES"]
+__all__ = ["woven_rgb", "woven_shares", "compose", "to_uint8", "colour_score", "plan_layers", "SCORE_SIZE",
+           "BLUR_SIGMA", "PREVIEW_SAMPLES"]
 
 SCORE_SIZE = 512
 BLUR_SIGMA = 2.0
@@ -58,7 +58,8 @@ def woven_shares(layers, pin_xy, *, size, thread_fraction, samples=None, rows=No
     thread_fraction : float
         The thread's width as a fraction of the frame (a plan's ``thread_model().fraction``).
     samples : float, optional
-        Samples across a thread (default: the reference's, :data:`~stringbot.planner.model.reference.SAMPLES_PER_WIDTH`).
+        Samples across a thread (default: the reference's,
+        :data:`~stringbot.planner.model.reference.SAMPLES_PER_WIDTH`).
     rows : (int, int), optional
         Only those output rows.
 
@@ -78,13 +79,19 @@ def woven_shares(layers, pin_xy, *, size, thread_fraction, samples=None, rows=No
 
 
 def compose(colors, shares, background):
-    """Linear RGB (h, w, 3) of ``shares`` (K, h, w) of ``colors`` over the board."""
+    """Linear RGB (..., 3) of ``shares`` (K, ...) of ``colors`` over the board."""
     board = to_linear(hex_to_rgb(background))
     img = np.empty(shares.shape[1:] + (3,), dtype=np.float64)
     img[:] = board
     for c, s in zip(colors, shares):
         img += s[..., None].astype(np.float64) * (to_linear(hex_to_rgb(c)) - board)
     return img
+
+
+def to_uint8(rgb, *, linear=False):
+    """sRGB floats in [0, 1] (or linear light, ``linear``) -> uint8, as previews and frames are stored."""
+    rgb = to_srgb(rgb) if linear else np.asarray(rgb, dtype=np.float64)
+    return np.clip(np.rint(rgb * 255.0), 0, 255).astype(np.uint8)
 
 
 def woven_rgb(layers, pin_xy, *, background=WHITE, size=1001, thread_fraction=None, samples=None, linear=False):
