@@ -68,8 +68,13 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     click.echo(f"colour: {p.pins} pins, {len(runs)} thread(s) in {len(p.colors)} run(s) (lines in runs: {per}), "
                f"{s['lines']} lines, thread {thread}, {s['spool_changes']} spool change(s), {s['seconds']:.2f} s "
                f"-> {output} (preview {preview})")
+    why = s.get("palette", {}).get("why_fewer")
+    if why:
+        asked = p.parameters["colors_requested"].split(":")[1]
+        click.echo(f"--colors auto:{asked}: {len(p.parameters['colors'])} thread(s): {why}")
     if s["unused"]:
-        click.echo(f"unused: {colour_names(s['unused'])} (no chord of it lowered the colour error)")
+        click.echo(f"unused: {colour_names(s['unused'])} (no run of it: it lowered the colour error nowhere, "
+                   "or the spool-change budget left it no run)")
     if mach is not None:
         for line in estimate_lines(p, mach):
             click.echo(line)

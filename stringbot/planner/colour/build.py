@@ -93,8 +93,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     from ..build import auto_lines, check_knobs, thread_length
     from ..model.chords import chord_pixels, chord_space
     from ..model.chords import frame_mask
-    from skimage.transform import resize
-
+    from ..picture.resample import resize_square
     from .model import Piece, chord_weights_px, linear_colors
     from .runs import Runner, plan_runs
 
@@ -133,7 +132,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         w = frame_mask(grid, frame).astype(np.float64)
         if weight is not None:
             w = w * (np.asarray(weight, dtype=np.float64) if grid == size else
-                     resize(np.asarray(weight, dtype=np.float64), (grid, grid), anti_aliasing=True))
+                     resize_square(np.asarray(weight, dtype=np.float64), grid))
         piece = Piece(to_linear(rgb.reshape(-1, 3)), w.ravel(), board, lin, space.pin_xy, model.width_px(grid),
                       nominal=float(np.median(weights)), samples=samples)
         return Runner(space, indptr, indices, weights, piece)
@@ -146,7 +145,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     if grid == size:
         runs = plan_runs(work, None, k, spool_changes=spool_changes, min_run=min_run, first=start_pin)
     else:
-        rgb = resize(pic.rgb, (grid, grid, 3), anti_aliasing=True)
+        rgb = np.stack([resize_square(pic.rgb[..., c], grid) for c in range(3)], axis=-1)
         runs = plan_runs(runner(grid, rgb, samples=DRAFT_SAMPLES), lambda: work, k, spool_changes=spool_changes,
                          min_run=min_run, first=start_pin)
     layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]

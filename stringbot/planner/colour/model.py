@@ -122,9 +122,9 @@ class Piece:
             return np.zeros(0, np.int64)
         self.top[samples] = k + 1
         cells, inv = unique(self.stamp.cells(samples), self._mark)
-        delta = (self.colors[k] - self.palette[old]) * self.per_sample
-        for ch in range(3):
-            self.u[cells, ch] += np.bincount(inv, weights=delta[:, ch], minlength=len(cells))
+        kinds = len(self.palette)
+        lost = np.bincount(inv * kinds + old, minlength=len(cells) * kinds).reshape(len(cells), kinds)
+        self.u[cells] += (lost * self.per_sample) @ (self.colors[k] - self.palette)   # what each sample changed
         self.refresh(cells)
         return cells
 
