@@ -162,6 +162,10 @@ def test_bad_colours(text, background, words):
     (["--colors", "black,red", "--background", "black"], "colour of the board"),
     (["--background", "#12"], "not a colour"),
     (["--colors", "black", "--style", "fill"], "--style is a knob of the one-thread planner"),
+    (["--colors", "black,red", "--spool-changes", "-1"], "--spool-changes -1; expected 0..500"),
+    (["--colors", "black,red", "--min-run", "0"], "--min-run 0; expected a number of lines >= 1"),
+    (["--spool-changes", "3"], "--spool-changes is a knob of the colour planner; give --colors too"),
+    (["--colors", "auto:4:black,red"], "4 threads among 2"),
 ])
 def test_cli_bad_colour_input_is_one_line_exit_2_and_writes_nothing(tmp_path, picture, capsys, args, words):
     out = tmp_path / "p.json"

@@ -35,6 +35,22 @@ def test_the_draft_is_merged_down_to_the_budget_each_colour_keeping_its_lines():
     assert fit_schedule(runs, 1) == [(0, 11)]
 
 
+def test_auto_gives_n_threads_or_says_why_fewer(picture, tmp_path, capsys):
+    from stringbot.planner.colour.reach import auto_palette
+    from stringbot.planner.picture.read import read_picture
+
+    rgb = read_picture(picture, size=64).rgb          # red, blue, black and white: the list has them all
+    three = auto_palette(rgb, 3)
+    assert len(three.colors) == 3 and three.why_fewer is None and three.reach[-1] < three.reach[0]
+    six = auto_palette(rgb, 6)
+    assert 3 <= len(six.colors) < 6 and "no nearer" in six.why_fewer
+    assert "only 2 of the 3 threads" in auto_palette(rgb, 3, candidates=["#141414", "#1f5bb5", "#ffffff"]).why_fewer
+    code, out, err = run(["plan", str(picture), "-o", str(tmp_path / "a.json"), "--pins", "40", "--size", "64",
+                          "--lines", "60", "--colors", "auto:6", "--no-cache"], capsys)
+    assert code == 0, err
+    assert f"--colors auto:6: {len(six.colors)} thread(s): a thread more would bring" in out
+
+
 def test_the_planner_returns_to_a_colour_within_its_spool_change_budget(picture):
     kw = dict(colors=["#141414", "#c8102e", "#1f5bb5"], pins=60, size=64, lines=400, cache=False, model=THICK)
     plan = plan_colour(picture, spool_changes=4, min_run=20, **kw)

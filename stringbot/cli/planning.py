@@ -80,8 +80,8 @@ class _Lines(click.ParamType):
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
 @click.option("--colors", default=None, metavar="LIST|auto:N",
-              help="Thread colours, one layer each: names or #rrggbb (black,crimson,#1f5bb5), or auto:N to pick N "
-                   "from the picture; plans in colour (a version 2 plan).")
+              help="Thread colours: names or #rrggbb (black,crimson,#1f5bb5), or auto:N to pick N by what they "
+                   "reach of the picture (auto:N:LIST: among those); plans in colour, in runs (a version 2 plan).")
 @click.option("--background", default=None, metavar="white|black|#rrggbb",
               help="Colour of the board the threads are wound over [default: white]; plans in colour.")
 @click.option("--spool-changes", "spool_changes", type=int, default=None, metavar="N",

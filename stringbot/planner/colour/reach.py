@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .palette import MIN_DELTA_E, WHITE, hex_to_rgb, lab, threads, to_linear
+from .palette import MIN_DELTA_E, WHITE, describe_color, hex_to_rgb, lab, threads, to_linear
 
 __all__ = ["Palette", "auto_palette", "reach", "bare_share", "NO_NEARER"]
 
@@ -134,7 +134,8 @@ def auto_palette(rgb, n, *, background=WHITE, mask=None, candidates=None, bare=1
         best, i = min((cost(chosen + [i]), i) for i in options)
         if chosen and now - best < NO_NEARER:
             out.why_fewer = (f"a thread more would bring the picture's colours no nearer (reach {now:.2f} -> "
-                             f"{best:.2f} CIELAB with the best one left, {pool[i]}; less than {NO_NEARER})")
+                             f"{best:.2f} CIELAB with the best one left, {describe_color(pool[i])}; less than "
+                             f"{NO_NEARER})")
             break
         chosen.append(i)
         now = best
