@@ -14,8 +14,9 @@ exactly what those samples changed.
 **How a thread is judged before it is laid.**  A thread of colour ``c``
 covering a share ``s`` of a pixel falls on its samples as often as they are
 there, so it moves the pixel to ``u + s (c - u)`` on average.  The error is
-the squared CIELAB difference from the picture, pixel by pixel (weighted; 0
-outside the frame).  For every colour and pixel the model keeps ``S``, the
+the squared CIELAB difference from the picture, pixel by pixel, lightness
+weighed :data:`LIGHTNESS` against 1 for a* and b* (and each pixel by its
+weight: 0 outside the frame).  For every colour and pixel the model keeps ``S``, the
 exact change of the pixel's error that a typical thread (``s0``, the median
 share) of that colour would make, per unit of share; a chord's gain is its
 share times the sum of ``S`` over its pixels: one gather and one sum for the
@@ -69,6 +70,10 @@ class Piece:
         The thread's width in working pixels.
     nominal : float
         A typical thread's share of a pixel: the change of the error is exact for it.
+    lightness : float
+        The weight of lightness in the error (:data:`LIGHTNESS`).
+    samples : float
+        Samples of the fine canvas across a thread, about (1; the draft: fewer).
     """
 
     def __init__(self, target, weight, board, colors, pin_xy, width_px, *, nominal=0.2, lightness=LIGHTNESS,
