@@ -30,7 +30,7 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     from ..planner.colour.render import PREVIEW_SAMPLES, plan_layers, woven_rgb
     from ..planner.picture.read import parse_crop
     from ..planner.progress import reporting
-    from .planning import PREVIEW_SIZE, check_plan_outputs, warn_small_crop
+    from .plan_checks import PREVIEW_SIZE, check_plan_outputs, warn_small_crop
     from .progress import PlanProgress
 
     mono = [f"--{name.replace('_', '-')}" if name != "T" else "-T" for name in MONO_ONLY if name in given]

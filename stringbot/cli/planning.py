@@ -9,10 +9,8 @@ import click
 from ..errors import BadInput
 from ..planner.methods import DEFAULT_METHOD, METHODS, method_help
 from . import cli, log
-from .plan_checks import check_plan_outputs, warn, warn_small_crop  # noqa: F401  (cli/colour.py's import)
+from .plan_checks import PREVIEW_SIZE, check_plan_outputs, warn, warn_small_crop
 
-#: side of the preview `plan` writes (as woven)
-PREVIEW_SIZE = 1001
 
 
 class _Lines(click.ParamType):

@@ -90,9 +90,8 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     Plan
         A version 2 plan (unless one black layer on white).
     """
-    from ..build import auto_lines, check_knobs, thread_length
-    from ..model.chords import chord_pixels, chord_space
-    from ..model.chords import frame_mask
+    from ..knobs import auto_lines, check_knobs
+    from ..model.chords import chord_pixels, chord_space, frame_mask, thread_length
     from ..picture.resample import resize_square
     from .model import Piece, chord_weights_px, linear_colors
     from .runs import Runner, plan_runs
