@@ -24,19 +24,8 @@ __all__ = ["colour_growth_frames"]
 def colour_growth_frames(plan, *, frames=100, size=400):
     """RGB frames (uint8, ``size x size x 3``) of a colour ``plan``'s chords in winding order.
 
-    Parameters
-    ----------
-    plan : Plan
-        Any plan (a one-thread plan is one layer of its colour).
-    frames : int
-        Number of frames (at most one per chord).
-    size : int
-        Side in pixels.
-
-    Yields
-    ------
-    (ndarray, int)
-        The frame and the number of chords it shows.
+    Parameters and what it yields: as :func:`stringbot.planner.model.frames.growth_frames`'s (any plan:
+    a one-thread plan is one layer of its colour).
     """
     fraction = plan.thread_model().fraction
     k = fine_factor(size, fraction, samples=PREVIEW_SAMPLES)
