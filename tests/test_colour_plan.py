@@ -209,7 +209,7 @@ def test_plan_render_score_through_the_cli(tmp_path, picture, capsys):
     assert code == 0, err
     assert "colour: 60 pins" in text and "spool change" in text
     plan = read_plan(out)
-    assert plan.version == 2 and plan.method == "colour" and 1 <= len(plan.colors) <= 3
+    assert plan.version == 2 and plan.method == "colour" and 3 <= len(plan.colors) <= 9 and len(set(plan.colors)) == 3
     preview = np.asarray(Image.open(tmp_path / "c.png"))
     assert preview.shape == (1001, 1001, 3)
     red = (preview[..., 0].astype(int) - preview[..., 2]) > 40

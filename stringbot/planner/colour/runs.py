@@ -256,7 +256,8 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
         Line budget over all runs.
     spool_changes : int
     min_run : int
-        Fewest chords of a run of the draft before another colour may take over.
+        Fewest chords of a run of the draft before another colour may take over (at most a ``2 K``-th of
+        ``lines``, ``K`` the colours).
     first : int, optional
         The first run's first pin (None: where its best chord is).
 
@@ -265,7 +266,8 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
     list of (int, list of int)
         ``(colour index, pin sequence)`` of each run, in winding order.
     """
-    runs = free_runs(draft, lines, min_run=min_run)
+    # a short plan's draft may still give every colour a run: its runs at most a (2 K)-th of the lines
+    runs = free_runs(draft, lines, min_run=max(1, min(min_run, lines // (2 * draft.piece.K))))
     if final is None and first is None and len(runs) <= spool_changes + 1:
         return runs
     schedule = fit_schedule(runs, spool_changes + 1)
