@@ -5,9 +5,9 @@ new one on top.  A *run* is one continuous thread of one colour (a layer of
 the plan file); between two runs the maker changes the spool.  At most
 ``spool_changes + 1`` runs.
 
-1. *The draft* (:func:`free_runs`, on a coarser grid): every colour is its
-   own thread at its own pin, and each step lays the (colour, chord) that
-   lowers the error most, a colour once chosen going on for at least
+1. *The draft* (:func:`free_runs`, on a coarser grid, its thread twice as
+   wide for half the lines): every colour is its own thread at its own pin,
+   and each step lays the (colour, chord) that lowers the error most, a colour once chosen going on for at least
    ``min_run`` chords: the order the picture asks for, with as many spool
    changes as that takes (40-70 on the test pictures).
 2. *The schedule* (:func:`fit_schedule`): the draft's runs merged down to the
@@ -243,7 +243,7 @@ def follow(runner, lines, schedule, *, first=None):
 
 
 def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"], min_run=RUN_DEFAULTS["min_run"],
-              first=None):
+              first=None, thicker=1.0):
     """Lay up to ``lines`` threads in at most ``spool_changes + 1`` runs (see the module notes).
 
     Parameters
@@ -260,14 +260,18 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
         ``lines``, ``K`` the colours).
     first : int, optional
         The first run's first pin (None: where its best chord is).
+    thicker : float
+        The draft's thread is this many times the plan's: it lays ``lines / thicker`` chords.
 
     Returns
     -------
     list of (int, list of int)
         ``(colour index, pin sequence)`` of each run, in winding order.
     """
-    # a short plan's draft may still give every colour a run: its runs at most a (2 K)-th of the lines
-    runs = free_runs(draft, lines, min_run=max(1, min(min_run, lines // (2 * draft.piece.K))))
+    # the draft's thread may be ``thicker``: each of its chords then stands for as many of the plan's; a short
+    # plan's draft still gives every colour a run (its runs at most a (2 K)-th of the lines)
+    short = max(1, int(round(lines / thicker)))
+    runs = free_runs(draft, short, min_run=max(1, min(int(round(min_run / thicker)), short // (2 * draft.piece.K))))
     if final is None and first is None and len(runs) <= spool_changes + 1:
         return runs
     schedule = fit_schedule(runs, spool_changes + 1)
