@@ -96,7 +96,7 @@ def main():
         print(f"a synthetic photo of {args.machine}'s calibration sheet, thread {args.width_mm:g} mm, board "
               f"{board:.4f}, thread {thread:.4f} (linear, paper = 1) -> {args.photo}")
         return
-    from stringbot.planner.palette import to_linear
+    from stringbot.planner.colour.palette import to_linear
 
     cases = [CASES[i] for i in QUICK] if args.quick else CASES
     print(f"machine {args.machine}; photos {SHAPE[1]} x {SHAPE[0]} unless said; reflectances linear, paper = 1")

@@ -15,7 +15,7 @@ from scipy import ndimage
 from skimage.draw import polygon
 from skimage.transform import estimate_transform
 
-from stringbot.planner.palette import to_srgb
+from stringbot.planner.colour.palette import to_srgb
 
 
 def camera(sheet, shape, *, tilt=(0.0, 0.0), turn=0.0, fill=0.85, shift=(0.0, 0.0)):

@@ -15,10 +15,11 @@ from stringbot.errors import BadInput
 from stringbot.motion import gcode_job, hook_steps
 from stringbot.motion.layers import layer_estimates
 from stringbot.planner import Plan, read_plan, write_plan
-from stringbot.planner.colour_build import plan_colour
-from stringbot.planner.colour_render import colour_score, plan_layers
+from stringbot.planner.colour.build import plan_colour
+from stringbot.planner.colour.render import colour_score, plan_layers
 from stringbot.planner.picture.read import read_picture
-from stringbot.planner.palette import auto_palette, parse_background, parse_color, parse_colors, threads
+from stringbot.planner.colour.palette import parse_background, parse_color, parse_colors, threads
+from stringbot.planner.colour.reach import auto_palette
 from stringbot.planner.model.thread import ThreadModel
 
 
@@ -161,6 +162,10 @@ def test_bad_colours(text, background, words):
     (["--colors", "black,red", "--background", "black"], "colour of the board"),
     (["--background", "#12"], "not a colour"),
     (["--colors", "black", "--style", "fill"], "--style is a knob of the one-thread planner"),
+    (["--colors", "black,red", "--spool-changes", "-1"], "--spool-changes -1; expected 0..500"),
+    (["--colors", "black,red", "--min-run", "0"], "--min-run 0; expected a number of lines >= 1"),
+    (["--spool-changes", "3"], "--spool-changes is a knob of the colour planner; give --colors too"),
+    (["--colors", "auto:4:black,red"], "4 threads among 2"),
 ])
 def test_cli_bad_colour_input_is_one_line_exit_2_and_writes_nothing(tmp_path, picture, capsys, args, words):
     out = tmp_path / "p.json"
@@ -172,7 +177,7 @@ def test_cli_bad_colour_input_is_one_line_exit_2_and_writes_nothing(tmp_path, pi
 def test_auto_palette_finds_the_picture_s_threads(picture):
     pic = read_picture(picture, size=64)
     names = {v: k for k, v in threads().items()}
-    got = [names[c] for c in auto_palette(pic.rgb, 3)]
+    got = [names[c] for c in auto_palette(pic.rgb, 3).colors]
     assert len(set(got)) == 3
     assert "black" in got or "dark-gray" in got
     assert any(n in got for n in ("red", "crimson", "burgundy")) and any(n in got for n in ("blue", "navy"))
@@ -182,14 +187,16 @@ def test_auto_palette_finds_the_picture_s_threads(picture):
 
 def test_joint_planner_beats_black_only_at_the_same_line_count(picture):
     colours = plan_colour(picture, colors=["#141414", "#c8102e", "#1f5bb5"], pins=60, size=64, lines=800,
-                          cache=False, model=THICK)
+                          cache=False, model=THICK, spool_changes=4, min_run=60)
     k = colours.stats["lines"]
-    assert 400 <= k <= 800 and len(colours.colors) == 3
-    assert colours.colors == ["#c8102e", "#1f5bb5", "#141414"]          # by contrast with the board
+    assert 400 <= k <= 800 and 3 <= len(colours.colors) <= 5 and set(colours.colors) == {"#141414", "#c8102e",
+                                                                                         "#1f5bb5"}
+    assert all(len(lay.sequence) - 1 >= 60 for lay in colours.layers[:-1])
+    assert all(a.color != b.color for a, b in zip(colours.layers[:-1], colours.layers[1:]))
     black = plan_colour(picture, colors=["#141414"], pins=60, size=64, lines=k, cache=False, model=THICK)
-    ref = read_picture(picture, size=201, crop=colours.crop).rgb
-    c = colour_score(plan_layers(colours), colours.pin_xy, ref, frame="circle", width=THICK.fraction)
-    b = colour_score(plan_layers(black), black.pin_xy, ref, frame="circle", width=THICK.fraction)
+    ref = read_picture(picture, size=512, crop=colours.crop).rgb
+    c = colour_score(plan_layers(colours), colours.pin_xy, ref, frame="circle", thread_fraction=THICK.fraction)
+    b = colour_score(plan_layers(black), black.pin_xy, ref, frame="circle", thread_fraction=THICK.fraction)
     assert black.stats["lines"] <= k
     assert c["delta_e"] < b["delta_e"] / 2, (c, b)
     assert colours.stats["model_error"] < colours.stats["model_error_start"] / 3
@@ -202,7 +209,7 @@ def test_plan_render_score_through_the_cli(tmp_path, picture, capsys):
     assert code == 0, err
     assert "colour: 60 pins" in text and "spool change" in text
     plan = read_plan(out)
-    assert plan.version == 2 and plan.method == "colour" and 1 <= len(plan.colors) <= 3
+    assert plan.version == 2 and plan.method == "colour" and 3 <= len(plan.colors) <= 9 and len(set(plan.colors)) == 3
     preview = np.asarray(Image.open(tmp_path / "c.png"))
     assert preview.shape == (1001, 1001, 3)
     red = (preview[..., 0].astype(int) - preview[..., 2]) > 40
@@ -268,7 +275,9 @@ def test_animate_draws_each_layer_in_its_colour_a_later_one_on_top(tmp_path, cap
     from PIL import Image
     path, gif = tmp_path / "c.json", tmp_path / "a.gif"
     # pins 0 (top) -> 150 (bottom): red, vertical; then 75 (right) -> 225 (left) -> 0: blue, across it
-    write_plan(colour_plan(layers=[("#c8102e", [0, 150]), ("#1f5bb5", [75, 225, 0])]), path)
+    plan = colour_plan(layers=[("#c8102e", [0, 150]), ("#1f5bb5", [75, 225, 0])])
+    plan.diameter_mm, plan.thread_mm = 100.0, 1.0          # a thread 10 px wide: its middle covers whole pixels
+    write_plan(plan, path)
     code, _, err = run(["animate", str(path), "-o", str(gif), "--frames", "3", "--size", "1001"], capsys)
     assert code == 0, err
     im = Image.open(gif)

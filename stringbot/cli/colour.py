@@ -14,23 +14,23 @@ MONO_ONLY = ("method", "disconnected", "importance", "gray", "alpha", "style", "
 
 
 def colour_names(colors):
-    from ..planner.palette import color_name
+    from ..planner.colour.palette import color_name
 
     return ", ".join(f"{color_name(c)} {c}" if color_name(c) != c else c for c in colors)
 
 
 def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, machine, frame, crop, start_pin,
-                    size, lines, no_cache, given, model, force=False):
+                    size, lines, no_cache, given, model, force=False, spool_changes=None, min_run=None):
     """``stringbot plan IMAGE --colors ...``: the colour planner, its plan and its preview as woven."""
     import os
 
     from .._files import write_all_atomic
-    from ..planner.colour_build import plan_colour
-    from ..planner.colour_render import plan_layers, woven_rgb
-    from ..planner.image import parse_crop
-    from ..planner.palette import WHITE, parse_background, parse_colors
+    from ..planner.colour.build import COLOUR_DEFAULTS, plan_colour
+    from ..planner.colour.palette import WHITE, parse_background, parse_colors
+    from ..planner.colour.render import PREVIEW_SAMPLES, plan_layers, woven_rgb
+    from ..planner.picture.read import parse_crop
     from ..planner.progress import reporting
-    from .planning import check_plan_outputs, warn_small_crop
+    from .plan_checks import PREVIEW_SIZE, check_plan_outputs, warn_small_crop
     from .progress import PlanProgress
 
     mono = [f"--{name.replace('_', '-')}" if name != "T" else "-T" for name in MONO_ONLY if name in given]
@@ -47,32 +47,41 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     try:
         with reporting(shown):
             p = plan_colour(image, colors=palette, background=board, pins=pins, frame=frame,
-                            size=401 if size is None else size,
+                            size=COLOUR_DEFAULTS["size"] if size is None else size,
                             crop=parse_crop(crop) if crop else None, lines=lines,
-                            start_pin=start_pin, model=model,
-                            cache=not no_cache)
+                            start_pin=start_pin, model=model, cache=not no_cache,
+                            spool_changes=COLOUR_DEFAULTS["spool_changes"] if spool_changes is None else spool_changes,
+                            min_run=COLOUR_DEFAULTS["min_run"] if min_run is None else min_run)
     finally:
         shown.close()
     if machine is not None:
         p.parameters["machine"] = machine
-    rgb = woven_rgb(plan_layers(p), p.pin_xy, background=p.background, size=1001, width=model.fraction)
+    rgb = woven_rgb(plan_layers(p), p.pin_xy, background=p.background, size=PREVIEW_SIZE,
+                    thread_fraction=model.fraction, samples=PREVIEW_SAMPLES)
     write_all_atomic([(output, p.to_json(), "plan"), (preview, png_rgb_bytes(rgb), "preview")])  # both or neither
     s = p.stats
-    per = ", ".join(f"{_short(lay['color'])} {lay['lines']}" for lay in s["layers"])
+    runs = {c: sum(1 for x in p.colors if x == c) for c in dict.fromkeys(p.colors)}
+    per = ", ".join(f"{_short(c)} {s['colors'][c]['lines']} in {n}" for c, n in runs.items())
     thread = f"{s['thread_diameters']:.1f} diameters"
     if mach is not None:
         thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
-    click.echo(f"colour: {p.pins} pins, {len(p.colors)} layers ({per} lines), {s['lines']} lines, thread {thread}, "
-               f"{s['spool_changes']} spool change(s), {s['seconds']:.2f} s -> {output} (preview {preview})")
+    click.echo(f"colour: {p.pins} pins, {len(runs)} thread(s) in {len(p.colors)} run(s) (lines in runs: {per}), "
+               f"{s['lines']} lines, thread {thread}, {s['spool_changes']} spool change(s), {s['seconds']:.2f} s "
+               f"-> {output} (preview {preview})")
+    why = s.get("palette", {}).get("why_fewer")
+    if why:
+        asked = p.parameters["colors_requested"].split(":")[1]
+        click.echo(f"--colors auto:{asked}: {len(p.parameters['colors'])} thread(s): {why}")
     if s["unused"]:
-        click.echo(f"unused: {colour_names(s['unused'])} (no chord of it lowered the colour error)")
+        click.echo(f"unused: {colour_names(s['unused'])} (no run of it: it lowered the colour error nowhere, "
+                   "or the spool-change budget left it no run)")
     if mach is not None:
         for line in estimate_lines(p, mach):
             click.echo(line)
 
 
 def _short(color):
-    from ..planner.palette import color_name
+    from ..planner.colour.palette import color_name
 
     return color_name(color)
 
@@ -81,26 +90,29 @@ def png_rgb_bytes(rgb):
     """PNG bytes of an sRGB float image in [0, 1], marked as stringbot's (:func:`~stringbot._files.mark_png`)."""
     import io
 
-    import numpy as np
     from PIL import Image
 
     from .._files import mark_png
+    from ..planner.colour.render import to_uint8
 
     buf = io.BytesIO()
-    Image.fromarray(np.clip(np.rint(np.asarray(rgb) * 255.0), 0, 255).astype(np.uint8), "RGB").save(
-        buf, format="PNG", compress_level=3)
+    Image.fromarray(to_uint8(rgb), "RGB").save(buf, format="PNG", compress_level=3)
     return mark_png(buf.getvalue())             # stringbot's: a later plan or render may replace it
 
 
 def estimate_lines(plan, machine):
     """Per-colour thread and machine time, and the total, for ``plan`` on ``machine``."""
     from ..motion import estimate, format_duration
-    from ..motion.layers import layer_estimates
+    from ..motion.layers import colour_estimates, layer_estimates
 
     est = estimate(plan, machine)
     out = [f"machine {machine.name}: about {format_duration(est.seconds)} of winding, {est.thread_m:.1f} m of "
            f"thread, {len(plan.colors) - 1} spool change(s)"]
-    for le in layer_estimates(plan, machine):
+    layers = layer_estimates(plan, machine)
+    for ce in colour_estimates(plan, machine, layers=layers):
+        out.append(f"  {_short(ce.color)} ({ce.color}): {ce.thread_m:.1f} m of thread, {format_duration(ce.seconds)}, "
+                   f"{ce.steps} pins in {ce.runs} run(s)")
+    for le in layers:
         out.append(f"  layer {le.index + 1} {_short(le.color)} ({le.color}): {le.thread_m:.1f} m of thread, "
                    f"{format_duration(le.seconds)}, {le.steps} pins, tie on at pin {le.tie_on_pin}")
     return out
@@ -109,22 +121,23 @@ def estimate_lines(plan, machine):
 def render_colour(plan, output, size):
     """``stringbot render`` of a colour plan: as woven."""
     from .._files import write_atomic
-    from ..planner.colour_render import plan_layers, woven_rgb
+    from ..planner.colour.render import plan_layers, woven_rgb
 
     write_atomic(output, png_rgb_bytes(woven_rgb(plan_layers(plan), plan.pin_xy, background=plan.background,
-                                                 size=size, width=plan.thread_model().fraction)), what="drawing")
+                                                 size=size, thread_fraction=plan.thread_model().fraction)),
+                 what="drawing")
     click.echo(f"{len(plan.chord_list())} chords in {len(plan.colors)} layers drawn as woven at {size} x {size} "
                f"-> {output}")
 
 
 def score_colour(plan, plan_path, image):
-    """The colour score of any plan (a mono plan is black thread on white) against IMAGE at 201 px."""
-    from ..planner.colour_render import SCORE_SIZE, colour_score, plan_layers
-    from ..planner.image import read_picture
+    """The colour score of any plan (a mono plan is black thread on white) against IMAGE at 512 px."""
+    from ..planner.colour.render import SCORE_SIZE, colour_score, plan_layers
+    from ..planner.picture.read import read_picture
 
     pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
     return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background,
-                        width=plan.thread_model().fraction)
+                        thread_fraction=plan.thread_model().fraction)
 
 
 # == winding a colour plan: the spool changes ==
@@ -162,7 +175,7 @@ def _word(text):
 def confirm_thread(question, color, *, prompt, say):
     """Ask until the operator types the thread's name (or its ``#rrggbb``, or ``y``): True; ``n``:
     False.  There is no default: an empty answer asks again, another colour is refused."""
-    from ..planner.palette import color_name, describe_color
+    from ..planner.colour.palette import color_name, describe_color
 
     name = color_name(color)
     yes = {_word(color), _word(name), "y", "yes"}
@@ -180,7 +193,7 @@ def confirm_thread(question, color, *, prompt, say):
 def first_thread_line(plan, mode):
     """Before a colour plan's winding with nobody to ask: the thread it starts with, and what
     happens at the spool changes."""
-    from ..planner.palette import describe_color
+    from ..planner.colour.palette import describe_color
 
     n = len(plan.colors) - 1
     then = {"stop": f"it stops at each of the {n} spool change(s) (exit 3) for you to tie the next one on",
@@ -194,7 +207,7 @@ def tie_on_simulator(pty_path, color, pin, *, serving):
     a thread of COLOUR on (its operator socket); its record gives every later wrap that colour."""
     from firmware_protocol.pty import OPERATOR_SUFFIX, tell_operator
 
-    from ..planner.palette import describe_color, parse_color
+    from ..planner.colour.palette import describe_color, parse_color
 
     if color is None:
         raise BadInput("--pin goes with --tie-on COLOUR (the thread tied on at that pin)")

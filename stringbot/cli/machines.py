@@ -108,17 +108,21 @@ def estimate_cmd(plan, machine, as_json, force):
 
     p, m = _plan_and_machine(plan, machine, force)
     est = estimate(p, m)
-    layers = None
+    layers = colours = None
     if not p.is_mono:
-        from ..motion.layers import layer_estimates
+        from ..motion.layers import colour_estimates, layer_estimates
         layers = layer_estimates(p, m)
+        colours = colour_estimates(p, m, layers=layers)
     if as_json:
-        extra = {"layers": [vars(le) for le in layers]} if layers else {}
+        extra = {"colors": [vars(ce) for ce in colours], "layers": [vars(le) for le in layers]} if layers else {}
         click.echo(json.dumps({"plan": plan, "machine": m.name, **est.as_dict(), **extra}))
     else:
         click.echo(f"{'plan':<14} {plan}\n{'machine':<14} {m.name} ({m.path})")
         for line in _estimate_lines(est):
             click.echo(line)
+        for ce in colours or []:
+            click.echo(f"{'colour':<14} {ce.color}: {ce.thread_m:.1f} m of thread, {format_duration(ce.seconds)}, "
+                       f"{ce.steps} pins in {ce.runs} run(s)")
         for le in layers or []:
             click.echo(f"{'layer ' + str(le.index + 1):<14} {le.color}: {le.thread_m:.1f} m of thread, "
                        f"{format_duration(le.seconds)}, {le.steps} pins, tie on at pin {le.tie_on_pin}")

@@ -175,7 +175,7 @@ def animate_cmd(plan, output, frames, size, fps):
     if p.is_mono:
         images = [f for f, _ in growth_frames(p, frames=frames, size=size)]
     else:                                   # a colour plan: each layer in its colour, later ones on top
-        from ..planner.colour_frames import colour_growth_frames
+        from ..planner.colour.frames import colour_growth_frames
         images = [f for f, _ in colour_growth_frames(p, frames=frames, size=size)]
     try:
         data = gif_bytes(images, fps=fps) if ext == ".gif" else mp4_bytes(images, fps=fps)

@@ -17,6 +17,10 @@ def warn(text):
     click.echo(f"stringbot: warning: {text}", err=True)
 
 
+#: side of the preview `plan` writes (as woven; a colour plan's too)
+PREVIEW_SIZE = 1001
+
+
 def warn_small_crop(image, *, fit=True):
     """Warn when the default crop keeps less than :data:`MIN_CROP_SHARE` of ``image`` (a panorama or a
     strip: its centre only), naming ``--fit`` (where the command has it) and ``--crop``."""

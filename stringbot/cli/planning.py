@@ -9,10 +9,8 @@ import click
 from ..errors import BadInput
 from ..planner.methods import DEFAULT_METHOD, METHODS, method_help
 from . import cli, log
-from .plan_checks import check_plan_outputs, warn, warn_small_crop  # noqa: F401  (cli/colour.py's import)
+from .plan_checks import PREVIEW_SIZE, check_plan_outputs, warn, warn_small_crop
 
-#: side of the preview `plan` writes (as woven)
-PREVIEW_SIZE = 1001
 
 
 class _Lines(click.ParamType):
@@ -84,13 +82,19 @@ class _Lines(click.ParamType):
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
 @click.option("--colors", default=None, metavar="LIST|auto:N",
-              help="Thread colours, one layer each: names or #rrggbb (black,crimson,#1f5bb5), or auto:N to pick N "
-                   "from the picture; plans in colour (a version 2 plan).")
+              help="Thread colours: names or #rrggbb (black,crimson,#1f5bb5), or auto:N to pick N by what they "
+                   "reach of the picture (auto:N:LIST: among those); plans in colour, in runs (a version 2 plan).")
 @click.option("--background", default=None, metavar="white|black|#rrggbb",
               help="Colour of the board the threads are wound over [default: white]; plans in colour.")
+@click.option("--spool-changes", "spool_changes", type=int, default=None, metavar="N",
+              help="With --colors: at most N spool changes; the colours come back in runs within them "
+                   "[default: 8].")
+@click.option("--min-run", "min_run", type=int, default=None, metavar="N",
+              help="With --colors: a run of one colour lays at least N lines before the spool may change "
+                   "[default: 100].")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
              face, start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
-             polish, no_cache, force, colors, background):
+             polish, no_cache, force, colors, background, spool_changes, min_run):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
@@ -129,7 +133,12 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
         return plan_colour_cmd(image=image, output=output, preview=preview, colors=colors, background=background,
                                pins=pins, mach=mach, machine=machine, frame=frame, crop=crop, start_pin=start_pin,
                                size=size, lines=lines, no_cache=no_cache, given=given,
-                               model=thread_model(diameter_mm, thread_mm), force=force)
+                               model=thread_model(diameter_mm, thread_mm), force=force,
+                               spool_changes=spool_changes, min_run=min_run)
+    for option, given_value in (("--spool-changes", spool_changes), ("--min-run", min_run)):
+        if given_value is not None:
+            raise BadInput(f"{option} is a knob of the colour planner; give --colors too (e.g. --colors auto:3), "
+                           "or leave it out")
     preview = preview or os.path.splitext(output)[0] + ".png"
     check_plan_outputs(output, preview, sources=((image, "picture"), (importance, "mask")), force=force,
                        lines=lines)
@@ -338,5 +347,6 @@ def _score_colour(p, plan, image, as_json):
         return
     click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} {p.method}\n"
                f"{'threads':<10} {', '.join(p.colors)} on {p.background}\n{'lines':<10} {r['lines']}\n"
-               f"{'colour':<10} {r['delta_e']:.2f}   (mean CIEDE2000 as woven, blurred; lower is better)\n"
-               f"{'SSIM':<10} {r['ssim']:.4f}   (luminance; blurred: {r['ssim_blurred']:.4f})")
+               f"{'colour':<10} {r['delta_e']:.2f}   (mean CIEDE2000 as woven, both blurred sigma 2 px at 512 px; "
+               "lower is better)\n"
+               f"{'SSIM':<10} {r['ssim']:.4f}   (luminance, 512 px; blurred: {r['ssim_blurred']:.4f})")

@@ -256,7 +256,7 @@ def gcode_job(plan, machine, *, plan_name=None):
 
 def _colour_header(plan, machine, steps, lines):
     """A colour plan: the threads in the header, and the spool change before each later layer."""
-    from ..planner.palette import color_name
+    from ..planner.colour.palette import color_name
     from .layers import layer_estimates
 
     layers = layer_estimates(plan, machine, steps=steps)

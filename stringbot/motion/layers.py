@@ -1,7 +1,8 @@
-"""Per-layer figures of a colour plan: thread per spool, machine time, where to tie on.
+"""Per-layer and per-colour figures of a colour plan: thread per spool, machine time, where to tie on.
 
 Each layer of a colour plan is its own thread, wound after the one below it
-(see :mod:`stringbot.planner.plan_file`).  A layer's thread runs along its
+(see :mod:`stringbot.planner.plan_file`); the planner lays a colour in runs,
+so one colour may have several layers (:func:`colour_estimates` sums them).  A layer's thread runs along its
 chords and round its pins (as in :mod:`.estimate`); its machine time is that
 of its steps (the first one's ring turn from where the layer below ended
 included), by the same trapezoid model; the spool change itself (the
@@ -14,7 +15,7 @@ from dataclasses import dataclass
 from .estimate import _turn, move_seconds
 from .hooking import hook_steps, thread_neighbours
 
-__all__ = ["LayerEstimate", "layer_estimates"]
+__all__ = ["LayerEstimate", "ColourEstimate", "layer_estimates", "colour_estimates"]
 
 
 @dataclass(frozen=True)
@@ -74,4 +75,39 @@ def layer_estimates(plan, machine, *, steps=None):
         wraps = sum(w for _, w in per_step[a:b])
         out.append(LayerEstimate(index=k, color=color, first_step=a, steps=b - a, tie_on_pin=int(seq[0]),
                                  thread_m=(chords + wraps) / 1000.0, seconds=sum(t for t, _ in per_step[a:b])))
+    return out
+
+
+@dataclass(frozen=True)
+class ColourEstimate:
+    """Figures of one thread colour over all its layers (runs).
+
+    Attributes
+    ----------
+    color : str
+    runs : int
+        Its layers.
+    steps : int
+        Pins they hook.
+    thread_m : float
+        Thread of that colour, metres, wraps included (what to have on its spool).
+    seconds : float
+        Machine time of its steps.
+    """
+
+    color: str
+    runs: int
+    steps: int
+    thread_m: float
+    seconds: float
+
+
+def colour_estimates(plan, machine, *, layers=None):
+    """One :class:`ColourEstimate` per thread colour of ``plan``, in order of first use."""
+    layers = layer_estimates(plan, machine) if layers is None else layers
+    out = []
+    for color in dict.fromkeys(le.color for le in layers):
+        mine = [le for le in layers if le.color == color]
+        out.append(ColourEstimate(color=color, runs=len(mine), steps=sum(le.steps for le in mine),
+                                  thread_m=sum(le.thread_m for le in mine), seconds=sum(le.seconds for le in mine)))
     return out

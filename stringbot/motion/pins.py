@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import BadInput
-from ..planner.palette import describe_color
+from ..planner.colour.palette import describe_color
 from .hooking import wrap_direction
 
 __all__ = ["PinList", "pin_list", "format_txt", "format_csv", "square_offset", "thread_metres",
@@ -140,8 +140,15 @@ def pin_list(plan, *, plan_name="plan", size_mm=None, size_from="", thread_m=Non
         for k, ((a, color, name, tie), b) in enumerate(zip(layers, ends)):
             metres = f", about {thread_metres(plan, size_mm, plan.layers[k].sequence):.1f} m" if size_mm else ""
             each.append(f"{k + 1} {name}: steps {a + 1}-{b}, tie on at pin {tie}{metres}")
-        header.append(("threads", f"{len(layers)}, wound in this order (later ones lie on top): "
+        colours = list(dict.fromkeys(plan.colors))
+        runs = "" if len(colours) == len(layers) else f" runs of {len(colours)} colours (a colour comes back)"
+        header.append(("threads", f"{len(layers)}{runs}, wound in this order (later ones lie on top): "
                                   + "; ".join(each)))
+        if runs and size_mm:     # what each spool must hold
+            spool = {c: sum(thread_metres(plan, size_mm, lay.sequence) for lay in plan.layers if lay.color == c)
+                     for c in colours}
+            header.append(("colours", "; ".join(f"{describe_color(c)} about {m:.1f} m in {plan.colors.count(c)} "
+                                                "run(s)" for c, m in spool.items())))
     header += [
               ("wrap", "cw: round the pin clockwise, ccw: counter-clockwise (seen from the front), "
                        "either: both alike; always round the outside of the pin")]

@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from ..errors import BadInput
-from .knobs import auto_lines, check_knobs, settle  # noqa: F401  (check_knobs: the colour planner's import)
+from .knobs import auto_lines, settle
 from .methods import DEFAULT_METHOD, DEFAULTS, Job, outcome
 from .model.chords import chord_space, frame_mask, thread_length
 from .picture.face import crop_on_face, face_for_plan, face_weights

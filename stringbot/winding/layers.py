@@ -45,7 +45,7 @@ layer's thread.
 import logging
 
 from ..errors import Interrupted, SpoolChange
-from ..planner.palette import describe_color
+from ..planner.colour.palette import describe_color
 
 __all__ = ["Threads", "threads_for", "spool_stop_layer", "layer_problems", "tied_layer", "status_line"]
 

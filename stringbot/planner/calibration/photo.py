@@ -66,7 +66,7 @@ def read_photo(path, *, what="photo"):
         Linear light in [0, 1] (sRGB decoded); pixel ``(r, c)`` is centred on ``(x, y) = (c, r)``.
     """
     from ..picture.read import _upright_size, read_picture
-    from ..palette import to_linear
+    from ..colour.palette import to_linear
 
     w, h = _upright_size(path, what)
     side = max(w, h)
@@ -348,12 +348,12 @@ class Fit:
 
     @property
     def board_gray(self):
-        from ..palette import to_srgb
+        from ..colour.palette import to_srgb
         return float(to_srgb(self.board))
 
     @property
     def thread_gray(self):
-        from ..palette import to_srgb
+        from ..colour.palette import to_srgb
         return float(to_srgb(self.thread))
 
 

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-__all__ = ["reference_coverage", "reference_gray", "thread_samples", "fine_factor", "SAMPLES_PER_WIDTH",
+__all__ = ["reference_coverage", "reference_shares", "reference_gray", "thread_samples", "fine_factor", "SAMPLES_PER_WIDTH",
            "STRIP_SAMPLES"]
 
 #: samples across one thread's width (at least): the thread 4 fine pixels wide
@@ -122,8 +122,8 @@ def _runs(line, half, major, minor):
     return a, start.astype(np.int64), length.astype(np.int64)
 
 
-def _mark(cov, start, length, step):
-    """Set ``cov[start + i * step] = 1`` for ``0 <= i < length`` of every run."""
+def _mark(cov, start, length, step, value=1):
+    """Set ``cov[start + i * step] = value`` for ``0 <= i < length`` of every run."""
     if not len(start):
         return
     start = start[length > 0]
@@ -133,11 +133,11 @@ def _mark(cov, start, length, step):
     short, longest = int(length.min()), int(length.max())
     idx = start.copy()
     for _ in range(short):
-        cov[idx] = 1
+        cov[idx] = value
         idx += step
     for i in range(short, longest):  # the longer runs (of steeper threads, or a sample more)
         more = length > i
-        cov[start[more] + i * step] = 1
+        cov[start[more] + i * step] = value
 
 
 def thread_samples(xy0, xy1, F, half):
@@ -195,16 +195,47 @@ def reference_coverage(chords, pin_xy, *, size, thread_fraction, samples=SAMPLES
     ndarray of float32, shape (size, size), or (r1 - r0, size) with ``rows``
         0 where no thread passes, 1 where the board is hidden.
     """
+    return reference_shares([chords], pin_xy, size=size, thread_fraction=thread_fraction, samples=samples,
+                            factor=factor, rows=rows)[0]
+
+
+def reference_shares(layers, pin_xy, *, size, thread_fraction, ids=None, samples=SAMPLES_PER_WIDTH, factor=None,
+                     rows=None):
+    """The share of each output pixel in which each kind of thread lies on top, converged.
+
+    The layers lie in the order given, later ones on top: a sample shows the
+    last layer whose thread covers it (a sharp, opaque thread hides what it
+    covers), or the board.  ``ids`` names each layer's kind (a colour plan's
+    thread colour: the layers of one colour, however far apart, share an id).
+
+    Parameters
+    ----------
+    layers : sequence of sequence of (int, int)
+        Each layer's chords, in winding order.
+    pin_xy, size, thread_fraction, samples, factor, rows
+        As for :func:`reference_coverage`.
+    ids : sequence of int, optional
+        The kind of each layer, 0..254 (default: each layer its own, ``0, 1, ...``).
+
+    Returns
+    -------
+    ndarray of float32, shape (max(ids) + 1, size, size), or (.., r1 - r0, size) with ``rows``
+        For each kind, the share of each pixel where it is on top; the board shows in ``1 - sum``.
+    """
     size = int(size)
+    ids = list(range(len(layers))) if ids is None else [int(i) for i in ids]
+    if len(ids) != len(layers) or (ids and not 0 <= min(ids) <= max(ids) < 255):
+        raise ValueError(f"ids {ids!r}; expected one id in 0..254 per layer")
+    kinds = max(ids, default=-1) + 1
     k = int(factor) if factor is not None else fine_factor(size, thread_fraction, samples=samples)
     F = size * k
     half = float(thread_fraction) * F / 2.0
-    xmaj, ymaj = _lines(chords, pin_xy, F)
-    hh = max([0.0] + [float(half * np.sqrt(1.0 + np.max(ln[3] ** 2))) for ln in (xmaj, ymaj) if len(ln[3])])
+    lines = [_lines(chords, pin_xy, F) for chords in layers]
+    hh = max([0.0] + [float(half * np.sqrt(1.0 + np.max(ln[3] ** 2))) for two in lines for ln in two if len(ln[3])])
     M = int(math.ceil(2.0 * hh)) + 4  # margin around a strip: where runs reach beyond it
     W = F + 2 * M
     first, end = (0, size) if rows is None else (max(0, int(rows[0])), min(size, int(rows[1])))
-    out = np.zeros((max(0, end - first), size), dtype=np.float32)
+    out = np.zeros((kinds, max(0, end - first), size), dtype=np.float32)
     step = max(1, min(size, STRIP_SAMPLES // (F * k)))  # output rows per strip
     strip = np.zeros((step * k + 2 * M) * W, dtype=np.uint8)
     inv = np.float32(1.0 / (k * k))
@@ -214,15 +245,18 @@ def reference_coverage(chords, pin_xy, *, size, thread_fraction, samples=SAMPLES
         R = hi - lo
         cov = strip[:(R + 2 * M) * W]
         cov.fill(0)
-        # threads nearer horizontal: per column a run of rows; nearer vertical: per row a run of columns
-        col, s, n = _runs(xmaj, half, (0, F), (lo, hi))
-        _mark(cov, (s + (M - lo)) * W + (col + M), n, W)
-        row, s, n = _runs(ymaj, half, (lo, hi), (0, F))
-        _mark(cov, (row + (M - lo)) * W + (s + M), n, 1)
+        for (xmaj, ymaj), kind in zip(lines, ids):  # later layers overwrite earlier ones: they lie on top
+            # threads nearer horizontal: per column a run of rows; nearer vertical: per row a run of columns
+            col, s, n = _runs(xmaj, half, (0, F), (lo, hi))
+            _mark(cov, (s + (M - lo)) * W + (col + M), n, W, kind + 1)
+            row, s, n = _runs(ymaj, half, (lo, hi), (0, F))
+            _mark(cov, (row + (M - lo)) * W + (s + M), n, 1, kind + 1)
         # the box filter: the mean of each k x k block of samples (the margin left out)
         inner = cov.reshape(R + 2 * M, W)[M:M + R, M:M + F]
-        block = inner.reshape(r1 - r0, k, F).sum(axis=1, dtype=np.uint16)
-        out[r0 - first:r1 - first] = block.reshape(r1 - r0, size, k).sum(axis=2, dtype=np.uint32) * inv
+        for kind in range(kinds):
+            hit = inner > 0 if kinds == 1 else inner == kind + 1
+            block = hit.reshape(r1 - r0, k, F).sum(axis=1, dtype=np.uint16)
+            out[kind, r0 - first:r1 - first] = block.reshape(r1 - r0, size, k).sum(axis=2, dtype=np.uint32) * inv
     return out
 
 

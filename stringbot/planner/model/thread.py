@@ -1,11 +1,11 @@
 """The blurred thread model: how a set of real threads darkens a board, in real units.
 
 (The piece as it will hang is drawn by :mod:`stringbot.planner.model.reference`, the
-union of sharp threads; the one-thread planner keeps that union too,
-:mod:`stringbot.planner.model.union`.  This module's anti-aliased footprints serve
-the colour planner, which combines them as opaque threads, and
-:class:`ThreadModel` -- the frame and the thread, in millimetres -- serves
-all.)
+union of sharp threads; the planners keep that union too,
+:mod:`stringbot.planner.model.union`, the colour planner with the colour on top of
+each sample.  :class:`ThreadModel` -- the frame and the thread, in millimetres --
+serves all; this module's anti-aliased footprints serve no planner any more: only
+their own tests and the measurements of docs/planner.md that compare them.)
 
 A thread painting is threads of width ``thread_mm`` stretched between pins on a
 frame of diameter ``diameter_mm``.  Drawn on a ``size x size`` canvas that

@@ -10,8 +10,8 @@ Light mixes linearly: a pixel that a thread covers by ``a`` reflects
 what the eye averages at a distance.  The planner, the renderer and the score
 all mix there and convert back (:func:`to_srgb`) only to show or to measure.
 
-``--colors auto:N`` (:func:`auto_palette`) picks ``N`` threads of the list
-whose mixes with the board come nearest the picture's colours.
+``--colors auto:N`` picks ``N`` threads of the list (or of ``auto:N:LIST``)
+by what their mixes with the board can reach (:mod:`.reach`).
 """
 
 import functools
@@ -21,10 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BadInput
+from ...errors import BadInput
 
-__all__ = ["threads", "describe_color", "parse_color", "parse_colors", "parse_background", "to_linear", "to_srgb",
-           "hex_to_rgb", "rgb_to_hex", "auto_palette", "color_name", "BLACK", "WHITE", "MAX_COLORS",
+__all__ = ["lab", "threads", "describe_color", "parse_color", "parse_colors", "parse_background", "to_linear",
+           "to_srgb",
+           "hex_to_rgb", "rgb_to_hex", "color_name", "delta_e", "BLACK", "WHITE", "MAX_COLORS",
            "MIN_DELTA_E"]
 
 BLACK, WHITE = "#000000", "#ffffff"
@@ -33,6 +34,25 @@ MAX_COLORS = 8
 MIN_DELTA_E = 8.0
 _BOARDS = {"white": WHITE, "black": BLACK}
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6}|[0-9a-fA-F]{3})$")
+
+
+# linear sRGB -> XYZ (D65), normalised by the white point: t = Q rgb; Lab = P f(t) + (-16, 0, 0)
+_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
+                 [0.2126729, 0.7151522, 0.0721750],
+                 [0.0193339, 0.1191920, 0.9503041]])
+_Q = _XYZ / _XYZ.sum(axis=1, keepdims=True)
+_QT = np.ascontiguousarray(_Q.T)
+_PT = np.array([[0.0, 116.0, 0.0], [500.0, -500.0, 0.0], [0.0, 200.0, -200.0]]).T
+_LAB0 = np.array([-16.0, 0.0, 0.0])
+_CUBE = (6.0 / 29.0) ** 3
+_SLOPE = 1.0 / (3 * (6.0 / 29.0) ** 2)
+
+
+def lab(linear):
+    """Linear RGB (n, 3) -> CIELAB (n, 3), D65."""
+    t = np.asarray(linear, dtype=np.float64) @ _QT
+    f = np.where(t > _CUBE, np.cbrt(np.maximum(t, 1e-12)), t * _SLOPE + 4.0 / 29.0)
+    return f @ _PT + _LAB0
 
 
 def _key(name):
@@ -118,39 +138,52 @@ def parse_background(text):
 
 def delta_e(hex_a, hex_b):
     """CIE76 (Euclidean CIELAB) difference between two colours."""
-    from .colour import lab
 
     pair = lab(to_linear(np.stack([hex_to_rgb(hex_a), hex_to_rgb(hex_b)])))
     return float(np.linalg.norm(pair[0] - pair[1]))
 
 
 def parse_colors(text, *, background=WHITE):
-    """``--colors``: ``"black,#b22222,..."`` -> list of ``"#rrggbb"``, or ``"auto:N"`` -> ``("auto", N)``.
+    """``--colors``: ``"black,#b22222,..."`` -> list of ``"#rrggbb"``; ``"auto:N"`` -> ``("auto", N)``;
+    ``"auto:N:LIST"`` -> ``("auto", N, [candidates])`` (N threads picked among the ones listed).
 
     Raises
     ------
     BadInput
         Unknown name, bad hex, an empty list, the same colour twice, more than
-        :data:`MAX_COLORS` threads, ``auto:N`` with N outside 1..MAX_COLORS, a
-        thread the board would hide (CIE76 below :data:`MIN_DELTA_E`).
+        :data:`MAX_COLORS` threads, ``auto:N`` with N outside 1..MAX_COLORS (or
+        more than its list names), a thread the board would hide (CIE76 below
+        :data:`MIN_DELTA_E`).
     """
     raw = str(text).strip()
     if raw.lower().startswith("auto"):
-        m = re.fullmatch(r"auto:(\d+)", raw.lower())
+        m = re.fullmatch(r"auto:(\d+)(?::(.*))?", raw, flags=re.IGNORECASE | re.DOTALL)
         if not m:
-            raise BadInput(f"--colors {raw!r}; expected auto:N with N in 1..{MAX_COLORS}, or a list of colours")
+            raise BadInput(f"--colors {raw!r}; expected auto:N with N in 1..{MAX_COLORS} (or auto:N:LIST, N threads "
+                           "picked among those listed), or a list of colours")
         n = int(m.group(1))
         if not 1 <= n <= MAX_COLORS:
             raise BadInput(f"--colors {raw!r}: {n} threads; expected auto:N with N in 1..{MAX_COLORS}")
-        return ("auto", n)
+        if m.group(2) is None:
+            return ("auto", n)
+        candidates = _color_list(m.group(2), background, whole=raw, most=None)
+        if n > len(candidates):
+            raise BadInput(f"--colors {raw!r}: {n} threads among {len(candidates)}; expected N at most the "
+                           "number of colours listed")
+        return ("auto", n, candidates)
+    return _color_list(raw, background, whole=raw, most=MAX_COLORS)
+
+
+def _color_list(raw, background, *, whole, most):
+    """The colours of a comma-separated list (``whole``: the option's text, for the messages)."""
     parts = [x.strip() for x in raw.split(",")]
     if not any(parts):
-        raise BadInput(f"--colors {raw!r} names no colour; expected e.g. black,#b22222 or auto:3")
+        raise BadInput(f"--colors {whole!r} names no colour; expected e.g. black,#b22222 or auto:3")
     if not all(parts):
-        raise BadInput(f"--colors {raw!r} has an empty item; expected colours separated by single commas, "
+        raise BadInput(f"--colors {whole!r} has an empty item; expected colours separated by single commas, "
                        "e.g. black,#b22222")
-    if len(parts) > MAX_COLORS:
-        raise BadInput(f"--colors gives {len(parts)} threads; expected at most {MAX_COLORS}")
+    if most is not None and len(parts) > most:
+        raise BadInput(f"--colors gives {len(parts)} threads; expected at most {most}")
     colors = [parse_color(p) for p in parts]
     for k, (name, c) in enumerate(zip(parts, colors)):
         if c in colors[:k]:
@@ -159,93 +192,3 @@ def parse_colors(text, *, background=WHITE):
             raise BadInput(f"--colors: {name!r} ({c}) is the colour of the board ({background}), so its "
                            "thread would not show; expected threads that differ from --background")
     return colors
-
-
-_SAMPLE = 800
-_GRID = {2: 16, 3: 12, 4: 8, 5: 5, 6: 4}  # divisions of the mixing simplex, by its vertices
-
-
-def _simplex_grid(vertices, steps):
-    """Barycentric grid points of ``vertices`` vertices with ``steps`` divisions: (points, vertices)."""
-    import itertools
-
-    pts = [c for c in itertools.product(range(steps + 1), repeat=vertices - 1) if sum(c) <= steps]
-    g = np.array([[steps - sum(c), *c] for c in pts], dtype=np.float64) / steps
-    return g
-
-
-def _gamut_distance(lab_pixels, vertices_linear, grid):
-    """Mean distance (CIELAB, Euclidean) from each pixel to the nearest mix of the vertices."""
-    from .colour import lab
-
-    from scipy.spatial import cKDTree
-
-    return cKDTree(lab(grid @ vertices_linear)).query(lab_pixels)[0]
-
-
-def auto_palette(rgb, n, *, background=WHITE, mask=None, rng=None):
-    """``n`` thread colours for a picture.
-
-    Forward selection from the thread list.  Every colour a piece can show is
-    a mix of the board and its threads (in linear light; any coverage of any
-    layer order reaches the whole simplex of board and threads), so threads
-    are added one at a time, each the one that brings the picture's pixels (a
-    sample of 800 from the frame) nearest, on average in CIELAB, to the mixes
-    of the board and the threads chosen so far; then each chosen thread is
-    swapped for any other that lowers that distance (two passes).  (Against
-    k-means in CIELAB snapped to the list, see docs/planner.md, "Colour".)
-
-    Parameters
-    ----------
-    rgb : ndarray of float, shape (h, w, 3)
-        The crop, sRGB in [0, 1].
-    n : int
-    background : str
-        The board, ``"#rrggbb"``.
-    mask : ndarray of bool, shape (h, w), optional
-        Pixels that count (inside the frame).
-    rng : None, int or numpy Generator
-        Seeds the pixel sample (None: a fixed seed).
-
-    Returns
-    -------
-    list of str
-        ``n`` distinct ``"#rrggbb"`` from the thread list, none the board's colour.
-    """
-    from .colour import lab
-
-    rng = np.random.default_rng(0 if rng is None else rng)
-    px = np.asarray(rgb, dtype=np.float64).reshape(-1, 3)
-    if mask is not None:
-        px = px[np.asarray(mask).ravel()]
-    px = px[rng.choice(len(px), size=min(_SAMPLE, len(px)), replace=False)]
-    names = list(threads())
-    lin = to_linear(np.array([hex_to_rgb(threads()[k]) for k in names]))
-    board = to_linear(hex_to_rgb(background))
-    visible = np.linalg.norm(lab(lin) - lab(board[None]), axis=1) >= MIN_DELTA_E
-    n = min(int(n), int(visible.sum()))
-    target = lab(to_linear(px))
-
-    def cost(chosen):
-        verts = np.vstack([board[None], lin[chosen]])
-        grid = _simplex_grid(len(verts), _GRID.get(len(verts), 3))
-        return float(_gamut_distance(target, verts, grid).mean())
-
-    chosen = []
-    for _ in range(n):
-        best = min((cost(chosen + [i]), i) for i in range(len(names)) if visible[i] and i not in chosen)
-        chosen.append(best[1])
-    current = cost(chosen)
-    for _ in range(2):               # swap passes: a thread for a better one, until none is
-        improved = False
-        for slot in range(n):
-            for i in range(len(names)):
-                if not visible[i] or i in chosen:
-                    continue
-                trial = chosen[:slot] + [i] + chosen[slot + 1:]
-                c = cost(trial)
-                if c < current - 1e-9:
-                    chosen, current, improved = trial, c, True
-        if not improved:
-            break
-    return [threads()[names[i]] for i in chosen]

@@ -1,8 +1,0 @@
-"""Moved to :mod:`stringbot.planner.model.frames`: this old name is the same module, kept only while the colour
-planner still imports it (import-linter forbids it to every other module)."""
-
-import sys
-
-from .model import frames
-
-sys.modules[__name__] = frames
