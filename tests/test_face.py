@@ -102,7 +102,7 @@ def test_the_weights_are_raised_on_the_face_and_most_on_its_features():
     assert w.shape == (size, size) and w.min() == pytest.approx(1.0)
     r0, c0, r1, c1 = face_box_pixels((20, 30, 40, 40), crop=crop, size=size)
     inside, outside = w[r0:r1, c0:c1], np.concatenate([w[:, :20].ravel(), w[:, 85:].ravel()])
-    assert outside.max() < 1.01 and inside.mean() > 1.7 and w[40, 50] == pytest.approx(2.0)
+    assert outside.max() < 1.01 and inside.mean() > 2.4 and w[40, 50] == pytest.approx(3.0)
     w = face_weights(face, crop=crop, size=size, gray=gray, eyes=1.5, mouth=1.0, edges=1.0)
     (er, ec), _ = face.eyes
     mr, mc = face.mouth

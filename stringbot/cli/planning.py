@@ -177,8 +177,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     if p.parameters.get("face"):
         r, c, h, w = p.parameters["face"]["box"]
         click.echo(f"face: found at rows {r:.0f}-{r + h:.0f}, columns {c:.0f}-{c + w:.0f} of the picture; "
-                   f"{'the crop is centred on it, ' if crop is None and not fit else ''}the face weighs twice in "
-                   "the planner's error")
+                   f"{'the crop is centred on it, ' if crop is None and not fit else ''}the face weighs three "
+                   "times as much in the planner's error")
     if p.stats.get("line_cap"):
         warn(f"planning stopped at the cap of {p.stats['line_cap']} lines, not because the picture was matched: "
              f"it asks for more thread than that; check the preview {preview!r}, or give --lines N")

@@ -187,7 +187,7 @@ def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None, face=
     mask : ndarray of bool, shape (size, size)
         The frame.
     weights : ndarray of float32 or None
-        1 .. 2 by the importance mask, times the face's weights (1 .. 2), None without either.
+        1 .. 2 by the importance mask, times the face's weights (1 .. 3), None without either.
     face : Face or None
         The face found, in source pixels.
     """

@@ -59,9 +59,10 @@ MIN_VOTES = 8
 #: the windows' scale step, as in scikit-image's example
 SCALE_FACTOR = 1.1
 #: extra weight inside the face, and on top of it on each eye, on the mouth and on the face's strongest
-#: edges: the face raised alike (1.0) gave its SSIM as woven more than the face at 0.5 with eyes 1.5,
-#: mouth 1.0 and edges 1.0, or at 1.0 with 0.5 / 0.3 / 0.3 (docs/planner.md, "Faces")
-FACE_WEIGHT, EYE_WEIGHT, MOUTH_WEIGHT, EDGE_WEIGHT = 1.0, 0.0, 0.0, 0.0
+#: edges: the face raised alike gave its SSIM as woven more than eyes, mouth and edges raised above it;
+#: +2 balances the face's gain against the frame's loss (+1: less for the face, +3: more off the frame;
+#: docs/planner.md, "Faces")
+FACE_WEIGHT, EYE_WEIGHT, MOUTH_WEIGHT, EDGE_WEIGHT = 2.0, 0.0, 0.0, 0.0
 #: the eyes' and the mouth's place in the cascade's box, as shares of its height and width
 EYE_ROW, EYE_COL, MOUTH_ROW = 0.38, 0.30, 0.77
 
