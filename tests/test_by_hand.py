@@ -187,3 +187,11 @@ def test_what_is_said(plan_path):
     hw.go(40, now=0.0)
     hw.next(now=1.0)
     assert hw.utterance() == f"Done. All 40 steps. Tie the thread off at pin {hw.plan.sequence[-1]}."
+
+
+def test_one_thread_that_is_not_black_on_white_is_named():
+    plan = colour_plan(pins=120, layers=[("#f4f4f0", [3, 50, 7, 90])])
+    plan.background = "#000000"
+    hw = HandWinding(plan, plan_path="w.json", position_path="unused")
+    assert hw.steps[0].tie_on == "tie the white (#f4f4f0) thread on at pin 3"
+    assert hw.utterance(hw.steps[0]).startswith("Tie the white thread on at pin 3")

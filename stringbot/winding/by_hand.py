@@ -233,8 +233,10 @@ def _steps(plan):
     steps = []
     for k, (a, b) in enumerate(zip(starts, ends)):
         name = describe_color(colors[k])
-        if len(colors) == 1:
+        if plan.is_mono:
             tie = f"tie the thread on at pin {rows[a][1]}"
+        elif len(colors) == 1:                  # one thread, not black on white: say which
+            tie = f"tie the {name} thread on at pin {rows[a][1]}"
         elif k == 0:
             tie = f"tie the {name} thread on at pin {rows[a][1]} (thread 1 of {len(colors)})"
         else:
