@@ -159,9 +159,9 @@ def test_a_damaged_position_is_one_clear_refusal(plan_path, change, words):
     assert words in str(info.value)
 
 
-def test_a_colour_plan_says_which_thread_to_cut_and_which_to_tie_on():
+def test_a_colour_plan_says_which_thread_to_cut_and_which_to_tie_on(tmp_path):
     plan = colour_plan(pins=300, n=(5, 4, 3))
-    hw = HandWinding(plan, plan_path="c.json", position_path="unused", size_mm=500.0)
+    hw = HandWinding(plan, plan_path="c.json", position_path=str(tmp_path / "c.json.by-hand"), size_mm=500.0)
     a, b = plan.layer_starts[1], plan.layer_starts[2]
     firsts = [s for s in hw.steps if s.tie_on]
     assert [s.index for s in firsts] == [0, a, b]
@@ -189,9 +189,9 @@ def test_what_is_said(plan_path):
     assert hw.utterance() == f"Done. All 40 steps. Tie the thread off at pin {hw.plan.sequence[-1]}."
 
 
-def test_one_thread_that_is_not_black_on_white_is_named():
+def test_one_thread_that_is_not_black_on_white_is_named(tmp_path):
     plan = colour_plan(pins=120, layers=[("#f4f4f0", [3, 50, 7, 90])])
     plan.background = "#000000"
-    hw = HandWinding(plan, plan_path="w.json", position_path="unused")
+    hw = HandWinding(plan, plan_path="w.json", position_path=str(tmp_path / "w.json.by-hand"))
     assert hw.steps[0].tie_on == "tie the white (#f4f4f0) thread on at pin 3"
     assert hw.utterance(hw.steps[0]).startswith("Tie the white thread on at pin 3")
