@@ -37,6 +37,8 @@ How a file is known as stringbot's (:func:`written_by_stringbot`):
     Text that starts with ``; stringbot winding job``.
 ``record``
     JSON with a ``wraps`` list and ``collisions`` (a simulated world's record).
+``by-hand``
+    JSON whose ``format`` is ``"stringbot-by-hand"`` (the position ``stringbot by-hand`` keeps).
 """
 
 import errno
@@ -156,7 +158,8 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PNG_SOFTWARE = (b"Software", b"stringbot")
 #: What an existing file must be for each kind of output to replace it.
 _KIND_NAMES = {"plan": "a plan stringbot wrote", "png": "a picture stringbot drew",
-               "gcode": "G-code stringbot wrote", "record": "a simulated world's record"}
+               "gcode": "G-code stringbot wrote", "record": "a simulated world's record",
+               "by-hand": "a by-hand position stringbot wrote"}
 _HEAD = 1 << 16          # a PNG's marker sits right after its header; a journal's header is its first line
 _MAX_JSON = 1 << 28      # a larger file is no plan or record of ours (a 2000-pin plan of 100000 lines: ~2 MB)
 
@@ -260,12 +263,15 @@ def _old_preview(path, head):
 
 def written_by_stringbot(path, kind):
     """Whether the existing file ``path`` is an output of ``kind`` that stringbot wrote (see the module
-    notes): ``"plan"``, ``"png"``, ``"gcode"`` or ``"record"``."""
+    notes): ``"plan"``, ``"png"``, ``"gcode"``, ``"record"`` or ``"by-hand"``."""
     if kind == "plan":
         return _is_plan(path)
     if kind == "record":
         doc = _json(path)
         return doc is not None and isinstance(doc.get("wraps"), list) and "collisions" in doc
+    if kind == "by-hand":
+        doc = _json(path)
+        return doc is not None and doc.get("format") == "stringbot-by-hand"
     head = _read_head(path)
     if head is None:
         return False
@@ -295,6 +301,8 @@ def describe(path):
             return "a stringbot plan"
         if written_by_stringbot(path, "record"):
             return "a simulated world's record"
+        if written_by_stringbot(path, "by-hand"):
+            return "a by-hand position"
         return "a JSON file stringbot did not write"
     if head.startswith(GCODE_HEAD.encode()):
         return "G-code stringbot wrote"
@@ -317,7 +325,7 @@ def check_ours(path, kind, *, what, instead):
     Parameters
     ----------
     path : str or Path
-    kind : {"plan", "png", "gcode", "record"}
+    kind : {"plan", "png", "gcode", "record", "by-hand"}
     what : str
         The output's name in the message (``"plan"``, ``"preview"``).
     instead : str

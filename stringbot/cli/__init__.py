@@ -78,6 +78,7 @@ def main(argv=None):
 # each area's commands register themselves on `cli` when imported
 from . import machines, planning, winding  # noqa: E402,F401
 from . import maker  # noqa: E402,F401  (template, pins, animate)
+from . import by_hand  # noqa: E402,F401  (by-hand)
 from . import checking  # noqa: E402,F401  (machines check)
 from . import calibrate  # noqa: E402,F401  (calibrate sheet, calibrate fit)
 from . import examples  # noqa: E402,F401  (each command's examples, at the foot of its --help)

@@ -67,8 +67,20 @@ def check_plan_outputs(output, preview, *, sources, force, lines):
 
 
 def refuse_a_wound_plan(output):
-    """A plan whose journal has steps done is what a machine is (or was) winding: keep it."""
+    """A plan whose journal has steps done is what a machine is (or was) winding: keep it; and one
+    whose by-hand position has steps done, what a maker is (or was) winding by hand."""
+    from ..winding.by_hand import position_path_for, read_position
     from ..winding.journal import journal_path_for, read_journal
+
+    position = position_path_for(output)
+    try:
+        saved = read_position(position)
+    except BadInput:
+        saved = None                   # not a position we can read: nothing of ours to protect
+    if saved is not None and saved.done:
+        where = "finished" if saved.done >= saved.steps else f"{saved.done} of {saved.steps} steps done"
+        raise BadInput(f"plan {output!r} has a by-hand position {position!r} ({where}); overwriting the plan "
+                       "would orphan it: give another -o, or --force")
 
     journal = journal_path_for(output)
     if not journal.is_file():
