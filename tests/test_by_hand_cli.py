@@ -290,3 +290,22 @@ def test_plan_does_not_orphan_a_position_with_steps_done(tmp_path):
                               "done); overwriting the plan would orphan it: give another -o, or --force")
     assert out.read_text() == before
     assert run("plan", pic, "-o", out, *small, "--force")[0] == 0
+
+
+def test_a_second_session_of_the_same_plan_is_refused_while_the_first_winds(plan_path):
+    plan = read_plan(plan_path)
+    s = PtySession("by-hand", plan_path)
+    try:
+        s.expect("keys: Space/Enter/n next")
+        expect_step(s, plan, 1)
+        s.send("n")
+        expect_step(s, plan, 2)
+        code, out, err = feed(plan_path, "next\nnext\nquit\n")
+        one_error_line(code, err, f"another `stringbot by-hand` is winding {plan_path} now")
+        assert saved(plan_path)["done"] == 1          # the first session's position, untouched
+        s.send("q")
+        assert s.wait() == 0
+    finally:
+        s.close()
+    code, out, err = feed(plan_path, "next\nquit\n")   # once the first has quit, the plan is free again
+    assert code == 0 and saved(plan_path)["done"] == 2

@@ -110,6 +110,21 @@ def _hangup(signum, frame):
     raise KeyboardInterrupt
 
 
+def _one_session(plan, position):
+    """Hold a lock on the plan file while a session winds it: a second ``by-hand`` of the same plan
+    at the same time would overwrite the first's position.  Returns the open file (close it to let go)."""
+    import fcntl
+
+    f = open(plan, "rb")
+    try:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.close()
+        raise BadInput(f"another `stringbot by-hand` is winding {plan} now (its position: {position}); "
+                       "quit that one first (q), then run this again") from None
+    return f
+
+
 @cli.command("by-hand", epilog="""\b
 Examples:
   stringbot by-hand camera.json                      (keys: Space next, b back, r repeat, q quit)
@@ -171,6 +186,7 @@ def by_hand_cmd(plan, restart, from_step, position, speak, voice, speed, diamete
                f"{position}")
     click.echo(f"wrap: {hw.header['wrap']}")
     click.echo(LEGEND if tty else f"commands, one a line: {LINE_COMMANDS}")
+    lock = _one_session(plan, position)
     hw.save()                     # where this session starts, before the first key
     screen = Screen(hw, speaker=speaker, tty=tty and sys.stdout.isatty())
     old = {s: signal.signal(s, _hangup) for s in (signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM))}
@@ -193,6 +209,7 @@ def by_hand_cmd(plan, restart, from_step, position, speak, voice, speed, diamete
             signal.signal(s, h)
         if speaker is not None:
             speaker.close(wait_s=0 if hw.current is not None else 3.0)
+        lock.close()
     if outcome == "finished":
         last = hw.last
         click.echo(f"done: all {hw.total} steps; tie the thread off at pin {last.pin} (position in {position})")
