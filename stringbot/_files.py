@@ -51,7 +51,7 @@ from .errors import BadInput
 
 __all__ = ["write_atomic", "write_all_atomic", "check_output_path", "check_not_same_file", "problem",
            "output_error", "default_mode", "STDOUT", "check_ours", "written_by_stringbot", "describe", "mark_png",
-           "check_suffix", "sha256_file", "GCODE_HEAD"]
+           "check_suffix", "sha256_file", "GCODE_HEAD", "PINS_HEAD", "ANIMATION_COMMENT"]
 
 STDOUT = "-"
 
@@ -159,7 +159,12 @@ PNG_SOFTWARE = (b"Software", b"stringbot")
 #: What an existing file must be for each kind of output to replace it.
 _KIND_NAMES = {"plan": "a plan stringbot wrote", "png": "a picture stringbot drew",
                "gcode": "G-code stringbot wrote", "record": "a simulated world's record",
-               "by-hand": "a by-hand position stringbot wrote"}
+               "by-hand": "a by-hand position stringbot wrote", "pins": "a pin list stringbot wrote",
+               "template": "a template stringbot drew", "animation": "an animation stringbot made"}
+#: The first line of a pin list (``.txt``; a ``.csv`` has it after ``# ``).
+PINS_HEAD = "stringbot pin list"
+#: What marks a GIF or MP4 stringbot made: its comment (GIF comment extension, MP4 ``comment`` metadata).
+ANIMATION_COMMENT = b"made by stringbot"
 _HEAD = 1 << 16          # a PNG's marker sits right after its header; a journal's header is its first line
 _MAX_JSON = 1 << 28      # a larger file is no plan or record of ours (a 2000-pin plan of 100000 lines: ~2 MB)
 
@@ -218,6 +223,15 @@ def _read_head(path):
         return None
 
 
+def _read_tail(path):
+    try:
+        with open(path, "rb") as f:
+            f.seek(max(0, os.path.getsize(path) - _HEAD))
+            return f.read(_HEAD)
+    except OSError:
+        return b""
+
+
 def _json(path):
     import json
     try:
@@ -263,7 +277,7 @@ def _old_preview(path, head):
 
 def written_by_stringbot(path, kind):
     """Whether the existing file ``path`` is an output of ``kind`` that stringbot wrote (see the module
-    notes): ``"plan"``, ``"png"``, ``"gcode"``, ``"record"`` or ``"by-hand"``."""
+    notes): one of the kinds of :func:`check_ours`."""
     if kind == "plan":
         return _is_plan(path)
     if kind == "record":
@@ -275,6 +289,15 @@ def written_by_stringbot(path, kind):
     head = _read_head(path)
     if head is None:
         return False
+    if kind == "pins":
+        line = head.split(b"\n", 1)[0].decode("utf-8", "replace")
+        return line.startswith(PINS_HEAD) or line.startswith("# " + PINS_HEAD)
+    if kind == "template":      # motion.drawing's SVG title / PDF producer (its Info sits at the end)
+        if head.startswith(b"<?xml") or head.startswith(b"<svg"):
+            return b"<title>stringbot " in head
+        return head.startswith(b"%PDF") and b"/Producer (stringbot)" in _read_tail(path)
+    if kind == "animation":     # the GIF's comment comes before its frames; an MP4's metadata at its end
+        return ANIMATION_COMMENT in head or ANIMATION_COMMENT in _read_tail(path)
     if kind == "gcode":
         return head.startswith(GCODE_HEAD.encode())
     if kind == "png":
@@ -325,7 +348,7 @@ def check_ours(path, kind, *, what, instead):
     Parameters
     ----------
     path : str or Path
-    kind : {"plan", "png", "gcode", "record", "by-hand"}
+    kind : {"plan", "png", "gcode", "record", "by-hand", "pins", "template", "animation"}
     what : str
         The output's name in the message (``"plan"``, ``"preview"``).
     instead : str

@@ -44,6 +44,7 @@ def sheet_cmd(machine, output, template, paper, force):
     check_output_path(output, what="sheet")
     check_ours(output, "plan", what="sheet", instead="give another -o")     # never someone's own file
     check_output_path(template, what="template")
+    check_ours(template, "template", what="template", instead="give another --template")
     check_not_same_file(template, output, what="template", source_what="sheet")
     if not force:
         refuse_a_wound_plan(output)

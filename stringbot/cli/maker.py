@@ -88,8 +88,9 @@ def template_cmd(machine, pins, diameter_mm, pin_diameter_mm, output, paper):
         raise BadInput("expected --machine NAME, or both --pins N and --diameter-mm D")
     pin_diameter_mm = 1.5 if pin_diameter_mm is None else pin_diameter_mm
     kw = dict(pins=pins, diameter_mm=diameter_mm, pin_diameter_mm=pin_diameter_mm, name=name)
-    from .._files import check_output_path
+    from .._files import check_ours, check_output_path
     check_output_path(output, what="template")
+    check_ours(output, "template", what="template", instead="give another -o")   # never someone's own drawing
     data = template_svg(**kw) if ext == ".svg" else template_pdf(paper=paper, **kw)
     _emit(output, data, what="template")
     pages = ""
@@ -124,12 +125,13 @@ def pins_cmd(plan, output, diameter_mm, machine, force):
     from ..motion.pins import format_csv, format_txt, pin_list
     from ..planner.plan_file import read_plan
 
-    from .._files import check_not_same_file, check_output_path
+    from .._files import check_not_same_file, check_ours, check_output_path
 
     ext = os.path.splitext(output)[1].lower() if output != "-" else ".txt"
     if ext not in (".txt", ".csv"):
         raise BadInput(f"-o {output!r}; expected a file name ending in .txt or .csv, or - for standard output")
     check_output_path(output, what="pin list", allow_stdout=True)      # before the work
+    check_ours(output, "pins", what="pin list", instead="give another -o")     # never someone's notes
     check_not_same_file(output, plan, what="pin list", source_what="plan")
     p = read_plan(plan)
     size, size_from, mach = _frame_size(p, diameter_mm, machine, plan_path=plan, force=force)
@@ -168,8 +170,9 @@ def animate_cmd(plan, output, frames, size, fps):
         raise BadInput(f"-o {output!r}; expected a file name ending in .gif or .mp4")
     if ext == ".mp4" and size % 2:
         raise BadInput(f"--size {size}; expected an even number of pixels for MP4")
-    from .._files import check_not_same_file, check_output_path
+    from .._files import check_not_same_file, check_ours, check_output_path
     check_output_path(output, what="animation")
+    check_ours(output, "animation", what="animation", instead="give another -o")  # never someone's video
     check_not_same_file(output, plan, what="animation", source_what="plan")
     p = read_plan(plan)
     if p.is_mono:

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._files import PINS_HEAD
 from ..errors import BadInput
 from ..planner.colour.palette import describe_color
 from .hooking import wrap_direction
@@ -155,7 +156,7 @@ def pin_list(plan, *, plan_name="plan", size_mm=None, size_from="", thread_m=Non
     return PinList(rows=rows, header=header, layers=layers)
 
 
-def format_txt(pl, *, page_steps=PAGE_STEPS, title="stringbot pin list"):
+def format_txt(pl, *, page_steps=PAGE_STEPS, title=PINS_HEAD):
     """Text for printing: the header, then ``page_steps`` steps a page (form feeds between)."""
     width = max(len(label) for label, _ in pl.header)
     head = [title] + [f"{label + ':':<{width + 1}} {text}" for label, text in pl.header]
@@ -181,6 +182,7 @@ def format_txt(pl, *, page_steps=PAGE_STEPS, title="stringbot pin list"):
 def format_csv(pl):
     """CSV: ``# label: text`` header lines, then ``step,pin,plan_pin,wrap`` rows."""
     buf = io.StringIO()
+    buf.write(f"# {PINS_HEAD}\n")
     for label, text in pl.header:
         buf.write(f"# {label}: {text}\n")
     w = csv.writer(buf, lineterminator="\n")

@@ -11,6 +11,7 @@ import io
 import numpy as np
 
 from .chords import line_pixels, pin_pixels
+from ..._files import ANIMATION_COMMENT
 
 __all__ = ["growth_frames", "gif_bytes", "mp4_bytes", "frame_ends", "chord_pixels", "Mp4Unavailable"]
 
@@ -81,7 +82,7 @@ def gif_bytes(frames, *, fps=10, hold_s=2.0):
     durations = [step] * (len(images) - 1) + [max(step, int(hold_s * 1000))]
     buf = io.BytesIO()
     images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0,
-                   optimize=False)
+                   optimize=False, comment=ANIMATION_COMMENT)
     return buf.getvalue()
 
 
@@ -101,4 +102,5 @@ def mp4_bytes(frames, *, fps=10):
                              "(or write a .gif)") from None
     stack = np.stack(list(frames))
     return iio.imwrite("<bytes>", stack, extension=".mp4", plugin="FFMPEG", fps=fps, codec="libx264",
-                       macro_block_size=1, pixelformat="yuv420p")
+                       macro_block_size=1, pixelformat="yuv420p",
+                       output_params=["-metadata", "comment=" + ANIMATION_COMMENT.decode()])
