@@ -1,6 +1,6 @@
-"""Every bad input named by issues 11 (files, ports), 12 (colour), 14 (settings check) and 24 (files
+"""Every bad input named by issues 11 (files, ports), 12 (colour), 14 (settings check), 24 (files
 stringbot did not write, pictures it cannot plan, ports that are not serial devices, a second
-simulator), run as a user runs it (a new ``stringbot`` process in a scratch folder): its exit code
+simulator) and 27 (winding by hand; the maker's outputs over a user's file), run as a user runs it (a new ``stringbot`` process in a scratch folder): its exit code
 and its one line.
 
 Prints a Markdown table (command, exit, the line on standard error) and checks each case: exit 2
@@ -62,6 +62,15 @@ def setup(work):
     Image.fromarray(night).save(work / "night.png")
     Image.fromarray(rng.integers(0, 255, (20, 2000), dtype=np.uint8)).save(work / "strip.png")
     (work / "adir").mkdir()
+    (work / "notes.txt").write_text("my notes\n")
+    (work / "invoice.pdf").write_bytes(b"%PDF-1.4\n% my invoice\n")
+    (work / "cat.gif").write_bytes(b"GIF89a my cat")
+    other = work / "other.json"                 # a by-hand position for another plan under plan.json's name
+    subprocess.run(STRINGBOT + ["plan", "camera.png", "-o", str(other), "--pins", "60", "--lines", "30", "--size", "101"],
+                   cwd=work, check=True, capture_output=True)
+    subprocess.run(STRINGBOT + ["by-hand", "other.json"], input=b"next\nquit\n", cwd=work, check=True,
+                   capture_output=True)
+    shutil.copy(work / "other.json.by-hand", work / "square.json.by-hand")
     sim = subprocess.Popen(STRINGBOT + ["simulate", "--pty", "live.pty"], cwd=work, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)
     sim.stdout.readline()                               # "simulating grbl-ring on live.pty ..."
@@ -137,6 +146,17 @@ CASES = [
     # issue 25: faces
     "plan camera.png -o f.json --face --pins 60 --lines 50 --size 101",
     "plan camera.png -o c.json --colors black,red --face",
+    # issue 27: winding by hand; the maker's outputs over a user's file
+    "by-hand square.json",
+    "by-hand plan.json --from-step 0",
+    "by-hand plan.json --from-step 999",
+    "by-hand plan.json --voice en",
+    "by-hand plan.json --position notes.txt",
+    "by-hand plan.json --position plan.json",
+    "pins plan.json -o notes.txt",
+    "template --machine grbl-ring -o invoice.pdf",
+    "animate plan.json -o cat.gif",
+    "calibrate sheet --machine grbl-ring -o s2.json --template invoice.pdf",
 ]
 #: Cases that go on with a warning (exit 0, one ``stringbot: warning:`` line).
 WARNINGS = ("plan strip.png",)
