@@ -18,7 +18,11 @@ domain) and three in ``benchmarks/data/`` (see its README.md for their
 sources and licences): Grace Hopper, Barack Obama's 2012 official portrait,
 Barack Obama speaking.
 
-Usage: python benchmarks/bench_face.py [--json] [--variants] [--sheet docs/faces.png] [IMAGE ...]
+With ``--colors SPEC`` (e.g. ``auto:3``) the plans are colour plans (``stringbot plan IMG --colors SPEC``,
+its defaults), scored by ``stringbot score``'s colour yardstick (``colour_score``): the luminance
+SSIM inside the face box and over the frame, and the mean CIEDE2000 inside the box and over the frame.
+
+Usage: python benchmarks/bench_face.py [--json] [--variants] [--colors SPEC] [--sheet docs/faces.png] [IMAGE ...]
 """
 
 import argparse
@@ -115,14 +119,39 @@ def run(image, *, variants=False):
     return out
 
 
+def run_colour(image, spec):
+    """Colour plans of ``image`` without and with ``--face``: their figures (as ``stringbot score``)."""
+    from stringbot.planner.colour.build import plan_colour
+    from stringbot.planner.colour.palette import parse_colors
+    from stringbot.planner.colour.render import SCORE_SIZE, colour_score, plan_layers
+    from stringbot.planner.picture.face import face_for_plan
+    from stringbot.planner.picture.read import read_picture
+
+    box = face_for_plan(image, face="on").to_record()["box"]
+    out = {"image": Path(image).name, "box": [round(v, 1) for v in box], "plans": {}, "tiles": []}
+    for name in ("off", "on"):
+        t = time.perf_counter()
+        p = plan_colour(image, colors=parse_colors(spec), face=name)
+        pic = read_picture(image, size=SCORE_SIZE, crop=p.crop, gray="luminance")
+        r = colour_score(plan_layers(p), p.pin_xy, pic.rgb, frame=p.frame, background=p.background,
+                         thread_fraction=p.thread_model().fraction, face=box, crop=p.crop)
+        f = r["face"]
+        out["plans"][name] = {"lines": p.stats["lines"], "seconds": round(time.perf_counter() - t, 2),
+                              "crop": {k: round(v, 1) for k, v in p.crop.items()},
+                              "delta_e_face": round(f["delta_e_face"], 2), "delta_e": round(r["delta_e"], 2),
+                              **{k: round(f[k], 4) for k in KEYS}}
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("images", nargs="*", type=Path, default=PORTRAITS)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--variants", action="store_true", help="also the face's crop alone and its weights alone")
+    ap.add_argument("--colors", help="colour plans with these threads (as plan --colors, e.g. auto:3)")
     ap.add_argument("--sheet", type=Path, help="write a contact sheet: luminance | --face off | luminance | --face on")
     a = ap.parse_args(argv)
-    rows = [run(im, variants=a.variants) for im in a.images]
+    rows = [run_colour(im, a.colors) if a.colors else run(im, variants=a.variants) for im in a.images]
     if a.sheet:
         sheet(rows, a.sheet)
     for r in rows:
@@ -143,6 +172,11 @@ def table(rows):
             print(f"| {r['image']} | {name} | {p['lines']} | {p['ssim_face']:.3f} / {p['ssim_frame']:.3f} | "
                   f"{p['ssim_face_blurred']:.3f} / {p['ssim_frame_blurred']:.3f} | "
                   f"{c['cx']:g}, {c['cy']:g}, {c['r']:g} |")
+    if "delta_e_face" in rows[0]["plans"]["off"]:
+        for r in rows:
+            print(f"{r['image']}: CIEDE2000 face / frame: off {r['plans']['off']['delta_e_face']:.2f} / "
+                  f"{r['plans']['off']['delta_e']:.2f}, on {r['plans']['on']['delta_e_face']:.2f} / "
+                  f"{r['plans']['on']['delta_e']:.2f}")
     for key in ("ssim_face", "ssim_frame", "ssim_face_blurred", "ssim_frame_blurred"):
         d = [r["plans"]["on"][key] - r["plans"]["off"][key] for r in rows]
         print(f"{key}: --face on minus off: " + ", ".join(f"{x:+.3f}" for x in d) + f" (mean {sum(d) / len(d):+.3f})")

@@ -161,9 +161,34 @@ def test_face_auto_on_a_picture_without_one_plans_as_before(tmp_path, no_face):
     assert pa.sequence == pb.sequence and pa.crop == pb.crop and pa.parameters["face"] is None
 
 
-def test_face_is_a_knob_of_the_one_thread_planner(tmp_path, astronaut):
-    code, _, err = run("plan", small(astronaut, tmp_path), "-o", tmp_path / "c.json", *SMALL, "--colors", "black,red",
-                       "--face")
-    one_error_line(code, err, "--face")
+def test_a_colour_plan_with_face_records_it_weighs_it_and_scores_it(tmp_path, astronaut):
+    img = small(astronaut, tmp_path, 160)
+    on, off = tmp_path / "on.json", tmp_path / "off.json"
+    args = ["--pins", "120", "--size", "128", "--lines", "600", "--colors", "black,#ee7623,#eee6cc"]
+    code, stdout, err = run("plan", img, "-o", on, *args, "--face")
+    assert code == 0, err
+    assert "face: found at rows" in stdout
+    box = read_plan(on).parameters["face"]["box"]
+    r, c, h, w = box
+    assert r < ASTRONAUT_FACE[0] * 160 / 512 < r + h and c < ASTRONAUT_FACE[1] * 160 / 512 < c + w
+    assert run("plan", img, "-o", off, *args)[0] == 0
+    assert read_plan(off).parameters["face"] is None
+    code, stdout, err = run("score", on)
+    assert code == 0, err
+    line = next(ln for ln in stdout.splitlines() if ln.startswith("face"))
+    assert "inside the face box" in line and "colour" in line
+    f_on = json.loads(run("score", on, "--json")[1])["face"]
+    assert f_on["box"] == box
+    # the same face box scored on the plan made without --face: the face is nearer the picture with it
+    from stringbot.cli.colour import score_colour
+
+    p_off = read_plan(off)
+    p_off.parameters["face"] = {"box": box}
+    f_off = score_colour(p_off, off, img)["face"]
+    assert f_on["delta_e_face"] < f_off["delta_e_face"]
+    assert f_on["ssim_face_blurred"] > f_off["ssim_face_blurred"]
+
+
+def test_face_takes_auto_on_or_off(tmp_path, astronaut):
     code, _, err = run("plan", small(astronaut, tmp_path), "-o", tmp_path / "c.json", *SMALL, "--face", "maybe")
     assert code == 2 and "maybe" in err

@@ -10,7 +10,7 @@ from ..errors import BadInput
 
 #: ``plan`` options that are knobs of the mono planner: refused with ``--colors``.
 MONO_ONLY = ("method", "disconnected", "importance", "gray", "alpha", "style", "beta", "gamma", "T", "epsilon",
-             "iterations", "refine", "polish", "fit", "face")
+             "iterations", "refine", "polish", "fit")
 
 
 def colour_names(colors):
@@ -20,7 +20,8 @@ def colour_names(colors):
 
 
 def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, machine, frame, crop, start_pin,
-                    size, lines, no_cache, given, model, force=False, spool_changes=None, min_run=None):
+                    size, lines, no_cache, given, model, force=False, spool_changes=None, min_run=None,
+                    face="off"):
     """``stringbot plan IMAGE --colors ...``: the colour planner, its plan and its preview as woven."""
     import os
 
@@ -51,7 +52,8 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
                             crop=parse_crop(crop) if crop else None, lines=lines,
                             start_pin=start_pin, model=model, cache=not no_cache,
                             spool_changes=COLOUR_DEFAULTS["spool_changes"] if spool_changes is None else spool_changes,
-                            min_run=COLOUR_DEFAULTS["min_run"] if min_run is None else min_run)
+                            min_run=COLOUR_DEFAULTS["min_run"] if min_run is None else min_run,
+                            face=face)
     finally:
         shown.close()
     if machine is not None:
@@ -68,6 +70,8 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     click.echo(f"colour: {p.pins} pins, {len(runs)} thread(s) in {len(p.colors)} run(s) (lines in runs: {per}), "
                f"{s['lines']} lines, thread {thread}, {s['spool_changes']} spool change(s), {s['seconds']:.2f} s "
                f"-> {output} (preview {preview})")
+    from .plan_checks import face_found_line
+    face_found_line(p, centred=crop is None)
     why = s.get("palette", {}).get("why_fewer")
     if why:
         asked = p.parameters["colors_requested"].split(":")[1]
@@ -136,8 +140,9 @@ def score_colour(plan, plan_path, image):
     from ..planner.picture.read import read_picture
 
     pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
+    face = (plan.parameters.get("face") or {}).get("box")
     return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background,
-                        thread_fraction=plan.thread_model().fraction)
+                        thread_fraction=plan.thread_model().fraction, face=face, crop=plan.crop)
 
 
 # == winding a colour plan: the spool changes ==

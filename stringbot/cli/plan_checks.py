@@ -93,3 +93,12 @@ def refuse_a_wound_plan(output):
         where = "finished" if state.finished else f"{len(state.done)} of {state.steps_total} steps done"
         raise BadInput(f"plan {output!r} has a winding journal {str(journal)!r} ({where}); overwriting the plan "
                        "would orphan it: give another -o, or --force")
+
+
+def face_found_line(p, *, centred):
+    """Say where the face of a plan made with ``--face`` was found (nothing without one)."""
+    if p.parameters.get("face"):
+        r, c, h, w = p.parameters["face"]["box"]
+        click.echo(f"face: found at rows {r:.0f}-{r + h:.0f}, columns {c:.0f}-{c + w:.0f} of the picture; "
+                   f"{'the crop is centred on it, ' if centred else ''}the face weighs three "
+                   "times as much in the planner's error")

@@ -134,7 +134,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                                pins=pins, mach=mach, machine=machine, frame=frame, crop=crop, start_pin=start_pin,
                                size=size, lines=lines, no_cache=no_cache, given=given,
                                model=thread_model(diameter_mm, thread_mm), force=force,
-                               spool_changes=spool_changes, min_run=min_run)
+                               spool_changes=spool_changes, min_run=min_run, face=face)
     for option, given_value in (("--spool-changes", spool_changes), ("--min-run", min_run)):
         if given_value is not None:
             raise BadInput(f"{option} is a knob of the colour planner; give --colors too (e.g. --colors auto:3), "
@@ -174,11 +174,8 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     thread = f"{s['thread_diameters'] * p.diameter_mm / 1000.0:.1f} m"
     click.echo(f"{kind}{p.method}{style}: {p.pins} pins, {s['lines']} lines, thread {thread}, "
                f"{s['seconds']:.2f} s -> {output} (preview {preview})")
-    if p.parameters.get("face"):
-        r, c, h, w = p.parameters["face"]["box"]
-        click.echo(f"face: found at rows {r:.0f}-{r + h:.0f}, columns {c:.0f}-{c + w:.0f} of the picture; "
-                   f"{'the crop is centred on it, ' if crop is None and not fit else ''}the face weighs three "
-                   "times as much in the planner's error")
+    from .plan_checks import face_found_line
+    face_found_line(p, centred=crop is None and not fit)
     if p.stats.get("line_cap"):
         warn(f"planning stopped at the cap of {p.stats['line_cap']} lines, not because the picture was matched: "
              f"it asks for more thread than that; check the preview {preview!r}, or give --lines N")
@@ -341,12 +338,17 @@ def _score_colour(p, plan, image, as_json):
 
     r = score_colour(p, plan, image)
     if as_json:
+        face = r.pop("face", None)
         click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "colors": p.colors,
                                "background": p.background, "lines": r["lines"],
-                               **{k: round(v, 4) for k, v in r.items() if k != "lines"}}))
+                               **{k: round(v, 4) for k, v in r.items() if k != "lines"},
+                               **({"face": {k: v if k == "box" else round(v, 4) for k, v in face.items()}}
+                                  if face else {})}))
         return
     click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} {p.method}\n"
                f"{'threads':<10} {', '.join(p.colors)} on {p.background}\n{'lines':<10} {r['lines']}\n"
                f"{'colour':<10} {r['delta_e']:.2f}   (mean CIEDE2000 as woven, both blurred sigma 2 px at 512 px; "
                "lower is better)\n"
                f"{'SSIM':<10} {r['ssim']:.4f}   (luminance, 512 px; blurred: {r['ssim_blurred']:.4f})")
+    if "face" in r:
+        click.echo(_face_line(r).rstrip("\n") + f"; colour {r['face']['delta_e_face']:.2f} inside the face box")

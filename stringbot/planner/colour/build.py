@@ -58,7 +58,7 @@ def auto_colour_lines(gray, mask, background, colors):
 
 def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=COLOUR_DEFAULTS["size"], crop=None,
                 lines="auto", start_pin=None, model=None, cache=True, spool_changes=COLOUR_DEFAULTS["spool_changes"],
-                min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None):
+                min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, face="off"):
     """Plan a colour thread painting.
 
     Parameters
@@ -87,6 +87,10 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         An already read picture (with ``rgb``).
     rng : None, int or numpy Generator
         Seeds the pixel sample of ``auto`` colours (None: a fixed seed).
+    face : {"off", "auto", "on"}
+        Centre the crop on the largest face (unless ``crop`` is given) and weigh it more, as for a
+        one-thread plan (:func:`stringbot.planner.build.read_for_plan`); ``on`` refuses a picture
+        without a face.
 
     Returns
     -------
@@ -108,7 +112,18 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         raise BadInput(f"--min-run {min_run!r}; expected a number of lines >= 1")
     model = model or ThreadModel()
     report("reading the picture")
+    found = None
+    if picture is None and face != "off":
+        from ..picture.face import crop_on_face, face_for_plan
+
+        found = face_for_plan(path, face=face)
+        if found is not None and crop is None:
+            crop = crop_on_face(path, found)
     pic = picture or read_picture(path, size=size, crop=crop, gray="luminance", rng=rng)
+    if found is not None:       # --face: the face weighs more (times any weight given)
+        from ..picture.face import face_weights
+
+        weight = face_weights(found, crop=pic.crop, size=size, gray=pic.gray, times=weight)
     mask = frame_mask(size, frame)
     requested = colors
     space = chord_space(pins, frame)
@@ -165,7 +180,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
               "colors_requested": (f"auto:{requested[1]}" + (":" + ",".join(requested[2]) if len(requested) > 2 else "")
                                    if isinstance(requested, tuple) else list(requested)),
               "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
-              "draft_size": draft_size(size),
+              "draft_size": draft_size(size), "face": found and found.to_record(),
               "mono_lines_rule": auto_lines(pic.gray, mask)}
     per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
                       "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c

@@ -139,7 +139,8 @@ def _luminance(linear_rgb):
     return to_srgb(linear_rgb) @ np.asarray(LUMINANCE, dtype=np.float64)
 
 
-def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE, thread_fraction=None):
+def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE, thread_fraction=None, face=None,
+                 crop=None):
     """The colour score of ``layers`` against a picture (see the module notes).
 
     Parameters
@@ -153,12 +154,17 @@ def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE, thread
     background : str
     thread_fraction : float, optional
         Thread width as a fraction of the frame (a plan records its frame and thread; default 1/2000).
+    face : sequence of float, optional
+        A face box ``(row, col, height, width)`` in source pixels (a plan made with ``--face`` records it),
+        with ``crop`` the picture's crop: the luminance SSIM inside it and over the frame, as for a
+        one-thread plan (:func:`stringbot.planner.model.scoring.face_ssim`).
 
     Returns
     -------
     dict
         ``delta_e``, ``ssim``, ``ssim_blurred``, ``ssim_uniform``, ``ssim_uniform_blurred``, ``lines``
-        and ``runs`` (layers with threads).
+        and ``runs`` (layers with threads); with ``face``, ``face``: ``box``, ``ssim_face``,
+        ``ssim_frame``, ``ssim_face_blurred``, ``ssim_frame_blurred`` and ``delta_e_face``.
     """
     from skimage.color import deltaE_ciede2000, rgb2lab
 
@@ -176,5 +182,25 @@ def colour_score(layers, pin_xy, picture_rgb, *, frame, background=WHITE, thread
     tb, wb = _blurred(target, BLUR_SIGMA), _blurred(woven, BLUR_SIGMA)
     de = deltaE_ciede2000(rgb2lab(to_srgb(tb)), rgb2lab(to_srgb(wb)))
     s = ssim_pair(_luminance(target), _luminance(woven), blur_sigma=BLUR_SIGMA)
-    return {"delta_e": float(de[mask].mean()), **s, "lines": int(sum(len(c) for _, c in layers)),
-            "runs": sum(1 for _, c in layers if len(c))}
+    out = {"delta_e": float(de[mask].mean()), **s, "lines": int(sum(len(c) for _, c in layers)),
+           "runs": sum(1 for _, c in layers if len(c))}
+    if face is not None:
+        out["face"] = _face_figures(face, crop, frame, _luminance(woven), _luminance(target), de, mask)
+    return out
+
+
+def _face_figures(box, crop, frame, woven_lum, target_lum, delta_e, mask):
+    """The face box's figures of :func:`colour_score`."""
+    from ..model.scoring import WOVEN_SIGMA, face_ssim
+    from ..picture.face import face_box_pixels
+
+    out = {"box": [float(v) for v in box]}
+    for tail, sigma in (("", None), ("_blurred", WOVEN_SIGMA)):
+        f = face_ssim(woven_lum, target_lum, box, crop=crop, frame=frame, blur_sigma=sigma)
+        out[f"ssim_face{tail}"], out[f"ssim_frame{tail}"] = f["face"], f["frame"]
+    r0, c0, r1, c1 = face_box_pixels(box, crop=crop, size=SCORE_SIZE)
+    inside = np.zeros_like(mask)
+    inside[r0:r1, c0:c1] = True
+    inside &= mask
+    out["delta_e_face"] = float(delta_e[inside].mean()) if inside.any() else float("nan")
+    return out
