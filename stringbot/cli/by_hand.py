@@ -13,6 +13,7 @@ import click
 
 from ..errors import BadInput, Interrupted
 from . import cli
+from .maker import frame_size_options
 from .hand_keys import LEGEND, LINE_COMMANDS, Cbreak, Command, line_commands, stdin_is_terminal, terminal_commands
 
 
@@ -141,13 +142,7 @@ Examples:
 @click.option("--speak", is_flag=True, help="Say each pin aloud with espeak-ng (where it is installed).")
 @click.option("--voice", default=None, help="--speak: the espeak-ng voice, e.g. en-us, de (espeak-ng --voices).")
 @click.option("--speed", type=int, default=None, help="--speak: words a minute, 80..450 [default: espeak-ng's 175].")
-@click.option("--diameter-mm", type=float, default=None,
-              help="Ring diameter (a square frame's side), mm, for the metres of thread to go [default: the plan's].")
-@click.option("--machine", default=None,
-              help="Take the ring diameter from this machine (name or .toml) [default: the plan's, from plan "
-                   "--machine].")
-@click.option("--force", is_flag=True,
-              help="Use the plan even though it was made for another thread-to-diameter ratio than the machine's.")
+@frame_size_options("the metres of thread to go [default: the plan's]")
 def by_hand_cmd(plan, restart, from_step, position, speak, voice, speed, diameter_mm, machine, force):
     """Wind PLAN by hand, step by step: the pin to go to, its wrap direction, progress and ETA.
 

@@ -24,6 +24,19 @@ def _emit(output, data, *, what, source=None):
     write_atomic(output, data, what=what)
 
 
+def frame_size_options(what):
+    """``--diameter-mm``, ``--machine`` and ``--force`` of a command that reads a plan's frame size
+    (:func:`_frame_size`); ``what`` says what the size is for."""
+    def add(f):
+        f = click.option("--force", is_flag=True, help="Use the plan even though it was made for another "
+                         "thread-to-diameter ratio than the machine's.")(f)
+        f = click.option("--machine", default=None, help="Take the ring diameter from this machine (name or "
+                         ".toml) [default: the plan's, from plan --machine].")(f)
+        return click.option("--diameter-mm", type=float, default=None,
+                            help=f"Ring diameter (a square frame's side), mm: {what}.")(f)
+    return add
+
+
 def _frame_size(plan, diameter_mm, machine, *, plan_path, force=False):
     """(size_mm, where it came from, Machine or None): --diameter-mm, --machine, the plan's machine
     (``parameters.machine``), or the plan's own frame."""
@@ -109,13 +122,7 @@ Examples:
 @click.argument("plan", type=click.Path(dir_okay=True, path_type=str))
 @click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False, allow_dash=True, path_type=str),
               help="Pin list to write: .txt (pages of 100 steps), .csv, or - for standard output (text).")
-@click.option("--diameter-mm", type=float, default=None,
-              help="Ring diameter (a square frame's side), mm: the thread length in metres.")
-@click.option("--machine", default=None,
-              help="Take the ring diameter from this machine (name or .toml) [default: the plan's, from plan "
-                   "--machine].")
-@click.option("--force", is_flag=True,
-              help="Use the plan even though it was made for another thread-to-diameter ratio than the machine's.")
+@frame_size_options("the thread length in metres")
 def pins_cmd(plan, output, diameter_mm, machine, force):
     """Write the pin list of PLAN for winding by hand: step, pin, wrap direction.
 
