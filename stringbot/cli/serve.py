@@ -11,7 +11,7 @@ from . import cli
                    "computers in (anyone on the network can then wind: the page has no password).")
 @click.option("--port", type=click.IntRange(0, 65535), default=8000, show_default=True,
               help="TCP port of the page (0: any free one, printed).")
-@click.option("--plans", "plans", default="stringbot-plans", show_default=True, type=click.Path(file_okay=False),
+@click.option("--plans", "plans", default="stringbot-plans", show_default=True, type=click.Path(),
               help="Folder of the plans, their previews and journals, the uploaded pictures and the simulators "
                    "(made when it is not there).")
 def serve_cmd(host, port, plans):

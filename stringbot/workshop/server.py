@@ -114,7 +114,8 @@ async def static(request):
 
 
 async def state(request):
-    return web.Response(text=request.app[HUB].text, content_type="application/json")
+    """The state now (the event stream's may be up to :data:`PUSH_EVERY_S` older)."""
+    return web.json_response(request.app[WORKSHOP].snapshot())
 
 
 async def events(request):

@@ -3,7 +3,7 @@
 The child is the command line's own winding (its checks, its journal, its exit codes); the
 workshop relays its questions to the page and the page's answers back, and holds what the
 page shows.  The live state comes from the journal, the truth (each executed step, the tie-ons,
-the stop records), read as it grows; the child's progress messages add the ETA.
+the stop records), read as it grows (each time the page's state is looked at); the child's progress messages add the ETA.
 
 Stop is SIGINT to the child: the command line's Ctrl-C, which holds the feed, waits for the
 machine to stand still, journals the stop and exits 130; ``--resume`` then continues exactly.
@@ -26,8 +26,6 @@ __all__ = ["Winding", "Phase", "Outcome"]
 
 log = logging.getLogger(__name__)
 
-#: How often the journal is read for new records while a winding runs.
-TAIL_EVERY_S = 0.2
 #: Lines of what the winding said that the page keeps.
 SAID_LINES = 12
 
@@ -160,8 +158,7 @@ class Winding:
             *self.command.argv(), cwd=str(self.command.cwd), stdin=asyncio.subprocess.PIPE,
             stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, start_new_session=True)
         loop = asyncio.get_running_loop()
-        self._tasks = [loop.create_task(self._read_out()), loop.create_task(self._read_err()),
-                       loop.create_task(self._tail())]
+        self._tasks = [loop.create_task(self._read_out()), loop.create_task(self._read_err())]
         loop.create_task(self._wait())
         return self
 
@@ -195,16 +192,10 @@ class Winding:
             if line.strip():
                 self.said.append(line)
 
-    async def _tail(self):
-        while True:
-            self.tail.read()
-            await asyncio.sleep(TAIL_EVERY_S)
-
     async def _wait(self):
         self.code = await self.proc.wait()
-        for task in self._tasks[:2]:
+        for task in self._tasks:
             await task                  # everything it wrote has been read
-        self._tasks[2].cancel()
         self.tail.read()
         self.outcome = Outcome.of(self.code)
         self.question = None
@@ -260,6 +251,8 @@ class Winding:
 
     # ---- what the page shows -----------------------------------------------------------------
     def snapshot(self):
+        """What the page shows; the journal read up to now first (the truth of what was wound)."""
+        self.tail.read()
         done_rec = self.tail.done
         done = done_rec[0] + 1 if done_rec else 0
         p = self.progress
