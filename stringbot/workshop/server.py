@@ -71,6 +71,7 @@ class _Hub:
         self.text = json.dumps(workshop.snapshot())
         self.version = 0
         self.changed = asyncio.Condition()
+        self.open = True                # until the server's end: then every stream finishes
         self._task = None
 
     def start(self):
@@ -93,6 +94,9 @@ class _Hub:
     async def stop(self):
         if self._task is not None:
             self._task.cancel()
+        self.open = False
+        async with self.changed:
+            self.changed.notify_all()
 
 
 async def index(request):
@@ -126,13 +130,14 @@ async def events(request):
     await resp.prepare(request)
     seen = -1
     try:
-        while True:
+        while hub.open:
             if hub.version != seen:
                 seen = hub.version
                 await resp.write(f"id: {seen}\ndata: {hub.text}\n\n".encode())
             async with hub.changed:
                 try:
-                    await asyncio.wait_for(hub.changed.wait_for(lambda: hub.version != seen), KEEPALIVE_S)
+                    await asyncio.wait_for(hub.changed.wait_for(lambda: hub.version != seen or not hub.open),
+                                           KEEPALIVE_S)
                 except asyncio.TimeoutError:
                     await resp.write(b": keepalive\n\n")
     except (ConnectionResetError, asyncio.CancelledError):

@@ -142,6 +142,7 @@ class Winding:
         self.progress = None
         self.progress_at = None
         self.said = deque(maxlen=SAID_LINES)
+        self.said_count = 0         # lines said in all (the page's new ones: the last count - its last)
         self.last_line = None       # the command line's last "stringbot: ..." line
         self.summary = None         # its "wound N pins ..." line
         self.check = None           # the record check of a simulated winding, when it ended
@@ -168,12 +169,12 @@ class Winding:
             if not line.startswith("{"):
                 if line.strip():
                     self.summary = line
-                    self.said.append(line)
+                    self.say(line)
                 continue
             try:
                 msg = json.loads(line)
             except ValueError:
-                self.said.append(line)
+                self.say(line)
                 continue
             if "ask" in msg:
                 self.question = msg
@@ -182,7 +183,11 @@ class Winding:
             elif "progress" in msg:
                 self.progress, self.progress_at = msg["progress"], time.monotonic()
             elif "say" in msg:
-                self.said.append(msg["say"])
+                self.say(msg["say"])
+
+    def say(self, text):
+        self.said.append(text)
+        self.said_count += 1
 
     async def _read_err(self):
         async for raw in self.proc.stderr:
@@ -190,7 +195,7 @@ class Winding:
             if line.startswith("stringbot:"):
                 self.last_line = line
             if line.strip():
-                self.said.append(line)
+                self.say(line)
 
     async def _wait(self):
         self.code = await self.proc.wait()
@@ -268,7 +273,8 @@ class Winding:
             "phase": self.phase.value, "resume": self.resume, "command": self.command.shown(),
             "done": done, "total": self.total, "pin": done_rec[1] if done_rec else None,
             "eta_s": None if eta is None else round(eta), "elapsed_s": round((self.ended or time.time()) - self.started),
-            "layer": layer, "question": self._question(done), "asked": self._asked, "said": list(self.said),
+            "layer": layer, "question": self._question(done), "asked": self._asked, "said": list(self.said), "said_count": self.said_count,
+            "pid": None if self.proc is None else self.proc.pid,
             "outcome": None if self.outcome is None else self.outcome.name.lower().replace("_", " "),
             "code": self.code, "line": self.last_line, "summary": self.summary, "check": self.check,
             "stop": _stop_summary(self.tail.stop),

@@ -224,7 +224,7 @@ class Workshop:
             code, out, err = await run_command(cmd, timeout=30.0)
             if code != 0:
                 raise BadInput(_error_line(err, code))
-            w.said.append(" ".join(out) + f"  ({cmd.shown()})")
+            w.say(" ".join(out) + f"  ({cmd.shown()})")
         w.answer(ask_id, value)
         return w.snapshot()
 
