@@ -270,7 +270,7 @@ class Winding:
             layer = max(k for k, (_, first) in enumerate(self.layers) if first <= at)
         return {
             "machine": self.machine, "plan": self.plan_name, "target": self.target.value,
-            "phase": self.phase.value, "resume": self.resume, "command": self.command.shown(),
+            "phase": self.phase.value, "resume": self.resume, "started": self.started, "command": self.command.shown(),
             "done": done, "total": self.total, "pin": done_rec[1] if done_rec else None,
             "eta_s": None if eta is None else round(eta), "elapsed_s": round((self.ended or time.time()) - self.started),
             "layer": layer, "question": self._question(done), "asked": self._asked, "said": list(self.said), "said_count": self.said_count,

@@ -216,7 +216,7 @@ async function checkAction() {
   try {
     const r = await api("/api/check", fields);
     $("#wind-cli").textContent = r.command;
-    show($("#wind-result"), r.said, r.agree ? "ok" : "error");
+    show($("#wind-result"), r.said, "table " + (r.agree ? "ok" : "error"));
   } catch (e) { show($("#wind-result"), e.message, "error"); }
 }
 
@@ -233,7 +233,7 @@ function cardFor(machine) {
   el.dataset.machine = machine;
   $("#windings").appendChild(el);
   card = {el, piece: new Piece($(".w-canvas", el), $(".w-overlay", el)), plan: null, asked: null, drawingFor: null};
-  $(".w-stop", el).onclick = () => api(`/api/windings/${machine}/stop`, {}).catch(e => alert(e.message));
+  $(".w-stop", el).onclick = () => api(`/api/windings/${machine}/stop`, {}).catch(e => setText($(".w-outcome", el), e.message));
   $(".w-resume", el).onclick = () => {
     const w = state.live.windings[machine];
     api("/api/wind", {plan: w.plan, machine, target: w.target, resume: true}).catch(e => { $(".w-outcome", el).textContent = e.message; });
@@ -284,7 +284,10 @@ async function renderWinding(machine, w) {
 }
 
 function answer(machine, id, value) {
-  return api(`/api/windings/${machine}/answer`, {id, value}).catch(e => alert(e.message));
+  return api(`/api/windings/${machine}/answer`, {id, value}).catch(e => {
+    const card = state.cards[machine];
+    if (card) setText($(".w-outcome", card.el), e.message);
+  });
 }
 
 function button(text, cls, onclick) {
@@ -298,11 +301,12 @@ function button(text, cls, onclick) {
 
 function renderQuestion(card, w) {
   const box = $(".w-question", card.el), q = w.question;
-  const key = q ? `${w.asked}:${q.id}:${w.said.length}:${w.said[w.said.length - 1] || ""}` : null;
+  const key = q ? `${w.command}:${w.started}:${q.id}` : null;   // each question drawn once (its words came before it)
   if (key === card.asked) return;
   card.asked = key;
   box.hidden = !q;
   box.replaceChildren();
+  box.dataset.ask = q ? String(q.id) : "";
   if (!q) return;
   const m = w.machine, text = document.createElement("p");
   text.className = "q-text";
