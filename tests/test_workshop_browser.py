@@ -94,7 +94,8 @@ def test_a_spool_change_answered_from_the_page(page, tmp_path):
     assert q["ask"] == "thread" and q["question"].startswith("Spool change")
     box = page.find(page.card("grbl-ring") + " .w-question").text
     second = doc["layers"][1]
-    assert f"{second['color']} at pin {second['sequence'][0]}" in box and "--tie-on" in box
+    assert f"Spool change: tie on crimson at pin {second['sequence'][0]}" in box and "--tie-on" in box
+    assert q["name"] == "crimson" and second["color"] in box
     page.shot("spool-change")
     page.click_text(page.card("grbl-ring"), "Tie it on at the simulator")
     w = page.ended("grbl-ring")
@@ -145,4 +146,29 @@ def test_the_guided_way_back_with_the_jog_buttons(page):
     w = page.server.client.winding("grbl-ring")
     assert shot and jogs >= 1 and w["outcome"] == "finished" and w["check"]["exact"], w
     assert exact(page.server.plans, "cam")
+    assert page.errors() == []
+
+
+@pytest.mark.realtime
+def test_the_live_view_while_winding_in_real_time_then_pause(page):
+    plan_on_page(page, EXAMPLES / "camera.png", name="cam", machine="grbl-ring", lines="200")
+    page.select("#wind-plan", "cam")
+    page.find("#wind-realtime").click()
+    page.find("#start-button").click()
+    page.question("grbl-ring")
+    page.click_text(page.card("grbl-ring"), "Yes, go on")
+    card = page.card("grbl-ring")
+    seen = set()
+    page.wait(lambda: seen.add(page.find(card + " .w-step").text) or page.server.client.winding("grbl-ring")["done"] >= 8,
+              timeout=120)
+    assert len(seen) >= 3                                   # the page followed the steps as they came
+    w = page.server.client.winding("grbl-ring")
+    assert w["phase"] == "running" and w["eta_s"] is not None and w["eta_s"] > 0
+    page.wait(lambda: page.find(card + " .w-eta").text not in ("", "–"))
+    page.shot("winding")
+    page.click_text(card, "Pause")
+    w = page.ended("grbl-ring")
+    assert w["outcome"] == "stopped" and w["stop"]["reason"] == "interrupted", w
+    page.wait(lambda: page.find(card + " .w-resume").is_displayed())
+    page.shot("paused")
     assert page.errors() == []

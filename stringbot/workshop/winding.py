@@ -265,8 +265,8 @@ class Winding:
         if p is not None and p.get("eta_s") is not None and self.phase is not Phase.ENDED:
             eta = max(0.0, p["eta_s"] - (time.monotonic() - self.progress_at))
         layer = None
-        if len(self.layers) > 1:
-            at = min(done, self.total - 1)
+        if len(self.layers) > 1:         # the thread on the machine: the last hooked step's layer
+            at = min(max(done - 1, 0), self.total - 1)
             layer = max(k for k, (_, first) in enumerate(self.layers) if first <= at)
         return {
             "machine": self.machine, "plan": self.plan_name, "target": self.target.value,
@@ -285,7 +285,8 @@ class Winding:
         q = self.question
         if q is None or q.get("ask") != "thread":
             return q
-        return {**q, "pin": self.sequence[min(done, self.total - 1)]}
+        from ..planner.colour.palette import color_name
+        return {**q, "pin": self.sequence[min(done, self.total - 1)], "name": color_name(q["color"])}
 
 
 def _stop_summary(stop):

@@ -206,7 +206,7 @@ async function windAction(resume) {
   show($("#wind-result"), "");
   try {
     await api("/api/wind", {...fields, resume});
-    show($("#wind-result"), resume ? "resuming…" : "started", "ok");
+    show($("#wind-result"), (resume ? "resuming" : "started") + ": the winding's card is below", "ok");
   } catch (e) { show($("#wind-result"), e.message, "error"); }
 }
 
@@ -269,7 +269,7 @@ async function renderWinding(machine, w) {
   $(".w-check", el).className = "w-check check-line " + (w.check ? (w.check.exact ? "ok" : "error") : "");
   const resumable = w.phase === "ended" && w.target !== "dry-run" && [1, 3, 130].includes(w.code);
   $(".w-resume", el).hidden = !resumable;
-  const said = $(".w-said", el), lines = w.said.slice(-6);
+  const said = $(".w-said", el), lines = w.said.filter(t => t !== w.line).slice(-6);
   if (said.dataset.text !== lines.join("\n")) {
     said.dataset.text = lines.join("\n");
     said.replaceChildren(...lines.map(t => { const li = document.createElement("li"); li.textContent = t; return li; }));
@@ -318,7 +318,8 @@ function renderQuestion(card, w) {
   } else if (q.ask === "thread") {
     const h = document.createElement("h3");
     h.className = "spool";
-    h.append("Spool change: ", swatch(q.color), ` ${q.color} at pin ${q.pin}`);
+    const first = !q.question.startsWith("Spool change");
+    h.append(first ? "Tie the first thread on: " : "Spool change: tie on ", swatch(q.color), ` ${q.name || q.color} at pin ${q.pin}`);
     const sim = w.target === "simulator";
     box.append(h, text,
       button(sim ? `Tie it on at the simulator, then go on` : "It is tied on: go on", "primary", () => answer(m, q.id, true)),
@@ -340,7 +341,11 @@ function renderGuide(box, w, q) {
   const gap = (said.match(/the gap between pins (\d+) and (\d+) faces the head/g) || []).pop();
   const h = document.createElement("h3");
   h.textContent = "Guided way back: jog to the reference";
-  box.appendChild(h);
+  const how = document.createElement("p");
+  how.className = "guide-text";
+  how.textContent = (w.said.filter(t => /Guided resume|Bring the head IN|not a jog command|jog in smaller/.test(t)).pop() || "")
+    .replace(/\s*Then jog with .*$/, "");
+  box.append(h, how);
   const wrap = document.createElement("div");
   wrap.className = "guide";
   if (pin) wrap.appendChild(referenceSvg(machine.pins, +pin.match(/\d+/)[0], gap ? +gap.match(/\d+/)[0] : null));
@@ -364,8 +369,11 @@ function renderGuide(box, w, q) {
   input.placeholder = "ring +1.2, pin -1, head -12";
   free.append(input, button("Send", "", () => { if (input.value.trim()) answer(m, q.id, input.value.trim()); }));
   free.onsubmit = ev => { ev.preventDefault(); if (input.value.trim()) answer(m, q.id, input.value.trim()); };
-  pad.append(free, button("Done: it is there", "primary", () => answer(m, q.id, "done")),
-             button("Quit (the machine stays)", "", () => answer(m, q.id, "quit")));
+  const ends = document.createElement("div");
+  ends.className = "jog-row";
+  ends.append(button("Done: it is there", "primary", () => answer(m, q.id, "done")),
+              button("Quit (the machine stays)", "", () => answer(m, q.id, "quit")));
+  pad.append(free, ends);
   const cli = document.createElement("p");
   cli.className = "muted";
   cli.textContent = "CLI: the same words at the jog> prompt of stringbot wind … --resume";
