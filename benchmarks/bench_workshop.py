@@ -159,7 +159,7 @@ def real_time(server, driver, minutes):
     watch = Watcher(server.url)
     watch.start()
     c.post("/api/wind", {"plan": "long", "machine": "grbl-ring", "target": "simulator", "realtime": True})
-    answer_all(c, until=lambda w: w["question"] is None)
+    answer_all(c, until=lambda w: w["question"] is None and w["done"] > 0)
     root = chromium_root(driver)
     t0, cpu0 = time.monotonic(), tree_cpu(root) if root else 0.0
     samples = []

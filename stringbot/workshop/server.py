@@ -36,6 +36,8 @@ log = logging.getLogger(__name__)
 
 #: How often the live state is looked at for changes to push.
 PUSH_EVERY_S = 0.25
+#: While a winding runs, the state is pushed at least this often (a page sees it live).
+LIVE_EVERY_S = 0.7
 #: A comment line this often keeps an idle event stream open through proxies.
 KEEPALIVE_S = 15.0
 WORKSHOP = web.AppKey("workshop", Workshop)
@@ -78,6 +80,8 @@ class _Hub:
         self._task = asyncio.get_running_loop().create_task(self._watch())
 
     async def _watch(self):
+        loop = asyncio.get_running_loop()
+        pushed = loop.time()
         while True:
             await asyncio.sleep(PUSH_EVERY_S)
             try:
@@ -85,8 +89,9 @@ class _Hub:
             except Exception:               # never let the page's view stop the server
                 log.exception("the workshop's snapshot")
                 continue
-            if text != self.text:
-                self.text = text
+            live = any(w.active for w in self.workshop.windings.values())
+            if text != self.text or (live and loop.time() - pushed >= LIVE_EVERY_S):
+                self.text, pushed = text, loop.time()
                 self.version += 1
                 async with self.changed:
                     self.changed.notify_all()
