@@ -70,10 +70,18 @@ def test_bad_wind_input_and_missing_plan_are_400(server):
     for body, says in [({"plan": "nope", "machine": "grbl-ring"}, "plan 'nope' is not in the plans folder"),
                        ({"plan": "cam", "machine": "mill"}, "unknown machine 'mill'"),
                        ({"plan": "cam", "machine": "grbl-ring", "target": "moon"}, "target 'moon'; expected one of"),
-                       ({"plan": "cam", "machine": "grbl-ring", "target": "port"}, "port is empty")]:
+                       ({"plan": "cam", "machine": "grbl-ring", "target": "port"}, "port is empty"),
+                       ({"plan": "cam", "machine": "grbl-ring", "faults": "bogus@1"},
+                        "--faults 'bogus@1': bad fault 'bogus@1'; expected a comma list of")]:
         with pytest.raises(HttpError) as info:
             c.post("/api/wind", body)
         assert info.value.status == 400 and says in info.value.body["error"], info.value.body
+    import urllib.request
+    req = urllib.request.Request(server.url + "/api/wind", data=b"{not json", method="POST",
+                                 headers={"Content-Type": "application/json"})
+    with pytest.raises(HttpError) as info:
+        c._open(req)
+    assert info.value.status == 400 and "not JSON" in info.value.body["error"]
     # the command line's own refusal of a port that is not there: the winding ends, exit 2, its line
     c.post("/api/wind", {"plan": "cam", "machine": "grbl-ring", "target": "port", "port": "/dev/ttyNOPE"})
     w = c.wait("grbl-ring", lambda w: w["phase"] == "ended")

@@ -73,14 +73,14 @@ def test_a_reboot_mid_hook_is_resumed_by_the_guide_answered_from_the_page(server
 @pytest.mark.realtime
 def test_pause_holds_the_feed_journaled_and_resume_continues_exactly(server, plans):
     c = server.client
-    c.plan(EXAMPLES / "camera.png", name="cam", machine="grbl-ring", lines="14")
+    c.plan(EXAMPLES / "camera.png", name="cam", machine="grbl-ring", lines="8")
     c.post("/api/wind", {"plan": "cam", "machine": "grbl-ring", "target": "simulator", "realtime": True})
     w = c.wait("grbl-ring", lambda w: w["phase"] == "asking")
     c.post("/api/windings/grbl-ring/answer", {"id": w["question"]["id"], "value": True})
     c.wait("grbl-ring", lambda w: w["done"] >= 3, timeout=120)
     c.post("/api/windings/grbl-ring/stop")
     w = c.wait("grbl-ring", lambda w: w["phase"] == "ended", timeout=60)
-    assert w["outcome"] == "stopped" and w["code"] == 130 and w["done"] < 15, w
+    assert w["outcome"] == "stopped" and w["code"] == 130 and w["done"] < 9, w
     assert "interrupted at pin" in w["line"] and w["line"].endswith("--resume")
     assert w["stop"]["reason"] == "interrupted"
     c.post("/api/wind", {"plan": "cam", "machine": "grbl-ring", "target": "simulator", "resume": True})
@@ -94,7 +94,7 @@ def test_the_server_killed_mid_winding_loses_nothing(plans):
     srv = Server(plans)
     try:
         c = srv.client
-        c.plan(EXAMPLES / "camera.png", name="cam", machine="grbl-ring", lines="14")
+        c.plan(EXAMPLES / "camera.png", name="cam", machine="grbl-ring", lines="8")
         c.post("/api/wind", {"plan": "cam", "machine": "grbl-ring", "target": "simulator", "realtime": True})
         w = c.wait("grbl-ring", lambda w: w["phase"] == "asking")
         c.post("/api/windings/grbl-ring/answer", {"id": w["question"]["id"], "value": True})

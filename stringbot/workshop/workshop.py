@@ -154,6 +154,7 @@ class Workshop:
         if target is Target.SIMULATOR:
             if not resume:
                 self._refuse_unfinished(name, target)
+                _check_faults(faults)           # before the simulator that serves now is stopped
                 await self.sims.start(machine, faults=faults, realtime=realtime)
             elif self.sims.get(machine) is None:        # a resume finds a simulated machine that was switched off
                 await self.sims.start(machine, realtime=realtime)
@@ -238,6 +239,16 @@ class Workshop:
     def snapshot(self):
         return {"windings": {m: w.snapshot() for m, w in self.windings.items()},
                 "simulators": self.sims.snapshot(), "plans_version": self.plans_version}
+
+
+def _check_faults(faults):
+    """``--faults`` refused as ``stringbot simulate`` refuses it."""
+    from firmware_protocol.faults import parse_faults
+
+    try:
+        parse_faults(faults)
+    except ValueError as exc:
+        raise BadInput(f"--faults {faults!r}: {exc}") from None
 
 
 def _port_of(w):

@@ -269,7 +269,7 @@ async function renderWinding(machine, w) {
   $(".w-check", el).className = "w-check check-line " + (w.check ? (w.check.exact ? "ok" : "error") : "");
   const resumable = w.phase === "ended" && w.target !== "dry-run" && [1, 3, 130].includes(w.code);
   $(".w-resume", el).hidden = !resumable;
-  const said = $(".w-said", el), lines = w.said.filter(t => t !== w.line).slice(-6);
+  const said = $(".w-said", el), lines = w.said.filter(t => t !== w.line && t !== w.summary).slice(-6);
   if (said.dataset.text !== lines.join("\n")) {
     said.dataset.text = lines.join("\n");
     said.replaceChildren(...lines.map(t => { const li = document.createElement("li"); li.textContent = t; return li; }));
