@@ -78,6 +78,10 @@ class Page:
                 time.sleep(0.05)
         return act()
 
+    def text(self, css):
+        """The text of ``css`` (read again while the page re-draws it)."""
+        return self._again(lambda: self.find(css).text)
+
     def type(self, css, text):
         def act():
             el = self.find(css)

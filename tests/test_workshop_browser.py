@@ -39,21 +39,21 @@ def plan_on_page(page, picture, **fields):
     page.wait(lambda: page.finds(f'.plan[data-plan="{name}"] img') and
               page.find(f'.plan[data-plan="{name}"] img').get_attribute("naturalWidth") not in (None, "0"),
               what=f"the plan {name} in the list")
-    assert "machine grbl-ring: about" in page.find("#plan-result").text
+    assert "machine grbl-ring: about" in page.text("#plan-result")
 
 
 def test_plan_wind_pull_the_cable_resume_from_the_page_the_record_exact(page):
     plan_on_page(page, EXAMPLES / "camera.png", name="cam", machine="grbl-ring", lines="60")
-    cli = page.find("#plan-cli").text
+    cli = page.text("#plan-cli")
     assert cli == "stringbot plan pictures/camera.png -o cam.json --machine grbl-ring --lines 60"
-    card = page.find('.plan[data-plan="cam"]').text
+    card = page.text('.plan[data-plan="cam"]')
     assert "60 lines" in card and "of winding" in card and "m of thread" in card
     page.shot("plan")
     page.select("#wind-plan", "cam")
     page.type("#wind-faults", "disconnect@150")
-    page.wait(lambda: page.find("#wind-cli").text.startswith("stringbot wind cam.json --machine grbl-ring --port"))
+    page.wait(lambda: page.text("#wind-cli").startswith("stringbot wind cam.json --machine grbl-ring --port"))
     page.find("#check-button").click()
-    page.wait(lambda: "all 9 settings agree with the machine file" in page.find("#wind-result").text)
+    page.wait(lambda: "all 9 settings agree with the machine file" in page.text("#wind-result"))
     page.find("#start-button").click()
     q, _ = page.question("grbl-ring")
     assert q["question"].startswith("Tie the thread on at pin")
@@ -63,8 +63,8 @@ def test_plan_wind_pull_the_cable_resume_from_the_page_the_record_exact(page):
     assert w["outcome"] == "failed" and "lost the connection" in w["line"]
     page.wait(lambda: page.find(page.card("grbl-ring") + " .w-resume").is_displayed())
     page.wait(lambda: not page.find("#resume-button").get_attribute("disabled"))
-    assert page.find("#resume-cli").text.endswith("--journal cam.json.simulator.journal --resume")
-    assert f"{w['done']} of 61" in page.find(page.card("grbl-ring") + " .w-step").text
+    assert page.text("#resume-cli").endswith("--journal cam.json.simulator.journal --resume")
+    assert f"{w['done']} of 61" in page.text(page.card("grbl-ring") + " .w-step")
     page.shot("interrupted")
     page.find(page.card("grbl-ring") + " .w-resume").click()
     page.server.client.wait("grbl-ring", lambda w: w["resume"])
@@ -73,8 +73,8 @@ def test_plan_wind_pull_the_cable_resume_from_the_page_the_record_exact(page):
     page.click_text(page.card("grbl-ring"), "Yes, go on")
     w = page.ended("grbl-ring")
     assert w["outcome"] == "finished" and w["check"]["exact"], w
-    page.wait(lambda: "wound the plan exactly" in page.find(page.card("grbl-ring") + " .w-check").text)
-    assert "61 of 61" in page.find(page.card("grbl-ring") + " .w-step").text
+    page.wait(lambda: "wound the plan exactly" in page.text(page.card("grbl-ring") + " .w-check"))
+    assert "61 of 61" in page.text(page.card("grbl-ring") + " .w-step")
     page.shot("finished")
     assert exact(page.server.plans, "cam")
     assert page.errors() == []
@@ -92,7 +92,7 @@ def test_a_spool_change_answered_from_the_page(page, tmp_path):
     page.click_text(page.card("grbl-ring"), "Tie it on at the simulator")
     q, _ = page.question("grbl-ring", after=q["id"])
     assert q["ask"] == "thread" and q["question"].startswith("Spool change")
-    box = page.find(page.card("grbl-ring") + " .w-question").text
+    box = page.text(page.card("grbl-ring") + " .w-question")
     second = doc["layers"][1]
     assert f"Spool change: tie on crimson at pin {second['sequence'][0]}" in box and "--tie-on" in box
     assert q["name"] == "crimson" and second["color"] in box
@@ -159,12 +159,12 @@ def test_the_live_view_while_winding_in_real_time_then_pause(page):
     page.click_text(page.card("grbl-ring"), "Yes, go on")
     card = page.card("grbl-ring")
     seen = set()
-    page.wait(lambda: seen.add(page.find(card + " .w-step").text) or page.server.client.winding("grbl-ring")["done"] >= 8,
+    page.wait(lambda: seen.add(page.text(card + " .w-step")) or page.server.client.winding("grbl-ring")["done"] >= 8,
               timeout=120)
     assert len(seen) >= 3                                   # the page followed the steps as they came
     w = page.server.client.winding("grbl-ring")
     assert w["phase"] == "running" and w["eta_s"] is not None and w["eta_s"] > 0
-    page.wait(lambda: page.find(card + " .w-eta").text not in ("", "–"))
+    page.wait(lambda: page.text(card + " .w-eta") not in ("", "–"))
     page.shot("winding")
     page.click_text(card, "Pause")
     w = page.ended("grbl-ring")

@@ -118,6 +118,18 @@ class Simulators:
         self.by_machine[machine] = sim
         return sim
 
+    async def wait_port(self, machine, timeout=10.0):
+        """Until the simulator's pty is there again: after a pulled cable (``disconnect``) or a power
+        cut it comes back once the simulated machine does (a winding started meanwhile would find
+        no port, as a user who plugs the cable in too late)."""
+        pty = self.folder / pty_for(machine)
+        deadline = time.monotonic() + timeout
+        while self.get(machine) is not None and not os.path.exists(os.path.realpath(pty)):
+            if time.monotonic() > deadline:
+                return False
+            await asyncio.sleep(0.05)
+        return True
+
     async def stop(self, machine):
         """Stop ``machine``'s simulator (as Ctrl-C: it writes its record and removes its pty)."""
         sim = self.by_machine.pop(machine, None)

@@ -158,6 +158,7 @@ class Workshop:
                 await self.sims.start(machine, faults=faults, realtime=realtime)
             elif self.sims.get(machine) is None:        # a resume finds a simulated machine that was switched off
                 await self.sims.start(machine, realtime=realtime)
+            await self.sims.wait_port(machine)
         cmd = wind_command(self.folder, plan_name=name, machine=machine, target=target, port=port, faults=faults,
                            realtime=realtime, resume=resume, check=check)
         layers = [(lay.color, first) for lay, first in zip(plan.layers, plan.layer_starts)]
