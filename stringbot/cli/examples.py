@@ -75,6 +75,11 @@ Examples:
   stringbot simulate --machine grbl-ring --pty /tmp/ring
   stringbot simulate --machine grbl-ring --pty /tmp/ring --faults power@500,reset@2000
   stringbot simulate --pty /tmp/ring --tie-on crimson --pin 42   (your hands at that running simulator)""",
+    "serve": """\b
+Examples:
+  stringbot serve                                   (then open http://127.0.0.1:8000/)
+  stringbot serve --port 8080 --plans ~/string-art
+  stringbot serve --host 0.0.0.0                    (the workshop's other computers too: no password)""",
 }
 
 

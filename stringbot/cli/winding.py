@@ -56,8 +56,12 @@ def _resume_command(plan, machine_name, port, journal, *extra):
 @click.option("--force", is_flag=True,
               help="Wind a plan made for another thread-to-diameter ratio than the machine's (the piece then "
                    "comes out darker or lighter than its preview).")
+@click.option("--questions", type=click.Choice(["terminal", "json"]), default="terminal", show_default=True,
+              help="Where the operator is asked: at the terminal, or as JSON lines (questions and progress on "
+                   "standard output, answers on standard input; for a front end such as stringbot serve: "
+                   "standard input's end stops the winding as Ctrl-C does).")
 def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head_side, show_status,
-         faults, realtime, progress_every, no_check, spool_change, force):
+         faults, realtime, progress_every, no_check, spool_change, force, questions):
     """Wind PLAN on a machine (no --port: a dry run on the simulated machine)."""
     from ..winding import Job, dry_run_problem, wind_plan
     from ..winding import resume as resuming
@@ -89,7 +93,13 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     from .colour import simulated_hands, spool_change_mode
     spool_change = spool_change_mode(spool_change, yes=yes, dry_run=job.dry_run)
     again = _resume_command(plan, machine_name, port, journal, *(["--force"] if force else []))
+    if questions == "json" and (yes or progress_every is not None):
+        raise BadInput("--questions json asks a front end and shows no progress line; leave out --yes and "
+                       "--progress-every with it")
     ask = _Asking()
+    if questions == "json":
+        from .questions import JsonQuestions
+        ask = JsonQuestions()
     threads = dict(spool_change=spool_change, ask_thread=None if yes else ask.thread, hands=simulated_hands(job))
     eyes = _simulated_eyes(job)
     if not job.plan.is_mono and yes and not resume and from_step is None:
@@ -101,7 +111,7 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
     from ..links.settings_check import SettingsDisagree
     from .progress import WindProgress
 
-    progress = WindProgress(every=progress_every).start()
+    progress = ask if questions == "json" else WindProgress(every=progress_every).start()
     try:
         if resume or from_step is not None:
             result = resuming.resume_plan(job, from_step=from_step, head_side=head_side,
