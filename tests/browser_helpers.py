@@ -64,8 +64,14 @@ class Page:
         raise AssertionError(f"{what} did not get there in {timeout} s")
 
     def select(self, css, value):
+        """Choose ``value`` in the ``<select>`` ``css`` once it offers it (the page re-draws its options as
+        the state comes in: look again while the element under it is replaced)."""
         from selenium.webdriver.support.ui import Select
-        Select(self.find(css)).select_by_value(value)
+
+        def chosen():
+            Select(self.find(css)).select_by_value(value)
+            return self.find(css).get_attribute("value") == value
+        self.wait(chosen, what=f"{css} offering {value!r}")
 
     def _again(self, act):
         """``act()``, again while the page re-draws the element under it (a stale reference)."""
