@@ -1,6 +1,6 @@
 """Every bad input named by issues 11 (files, ports), 12 (colour), 14 (settings check), 24 (files
 stringbot did not write, pictures it cannot plan, ports that are not serial devices, a second
-simulator) and 27 (winding by hand; the maker's outputs over a user's file), run as a user runs it (a new ``stringbot`` process in a scratch folder): its exit code
+simulator) and 27 (winding by hand; the maker's outputs over a user's file; the workshop server), run as a user runs it (a new ``stringbot`` process in a scratch folder): its exit code
 and its one line.
 
 Prints a Markdown table (command, exit, the line on standard error) and checks each case: exit 2
@@ -157,6 +157,10 @@ CASES = [
     "template --machine grbl-ring -o invoice.pdf",
     "animate plan.json -o cat.gif",
     "calibrate sheet --machine grbl-ring -o s2.json --template invoice.pdf",
+    # issue 27: the workshop page's server
+    "serve --host nosuch.invalid",
+    "serve --plans afile",
+    "serve --port 70000",
 ]
 #: Cases that go on with a warning (exit 0, one ``stringbot: warning:`` line).
 WARNINGS = ("plan strip.png",)
