@@ -16,7 +16,7 @@ from pathlib import Path
 
 from firmware_protocol.machine import MachineFileError, bundled_machines, load_machine
 
-from .._files import write_atomic
+from .._files import sha256_file, write_atomic
 from ..errors import BadInput
 from ..planner import read_plan
 from ..winding.journal import read_journal
@@ -192,7 +192,7 @@ class Plans:
             if not os.path.lexists(path):
                 write_atomic(path, data, what="picture")
                 return f"{PICTURES_DIR}/{name}", True
-            if path.is_file() and not path.is_symlink() and _sha256(path) == digest:
+            if path.is_file() and not path.is_symlink() and sha256_file(path) == digest:
                 return f"{PICTURES_DIR}/{name}", False
         raise BadInput(f"picture {base!r}: a thousand pictures of that name are kept already; give it another name")
 
@@ -208,11 +208,3 @@ class Plans:
             raise BadInput(f"picture {name!r} is not in {str(self.pictures)!r}; expected an upload, or one of: "
                            + (", ".join(self.picture_names()) or "none yet"))
         return f"{PICTURES_DIR}/{name}"
-
-
-def _sha256(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
