@@ -16,8 +16,10 @@ the first one running and unreachable.  The lock dies with its process (even a
 killed one): a path left by a dead simulator is taken over, its leftovers replaced.
 
 When the emulator reports its port down (a ``disconnect`` or ``power``
-fault), the server closes the pty: the host sees its port fail as with a
-pulled USB cable.  Once the emulator's port is back, and not before
+fault), the server closes the pty and removes ``path``: the host sees its port
+fail and the path vanish, as with a pulled USB cable (a path left pointing at
+the closed pty would name whatever pty the system opens next under its
+number).  Once the emulator's port is back, and not before
 ``reopen_delay`` seconds, a new pty is opened and ``path`` re-pointed to it
 (atomically), so the host can reopen the same path.
 
@@ -276,6 +278,16 @@ class PtyServer:
         self.master = None
         self._pending.clear()
 
+    def _unlink_path(self):
+        """Remove ``path`` if it still points at this server's pty.  Left in place, it would name a
+        closed pty whose number the system hands to the next pty opened: a host opening ``path``
+        then would talk to some other program."""
+        try:
+            if os.path.islink(self.path) and os.readlink(self.path) == self.slave_name:
+                os.unlink(self.path)
+        except OSError:
+            pass
+
     def close(self):
         """Close the pty, remove the symlink (if it is still ours) and let the emulator write its
         records."""
@@ -288,11 +300,7 @@ class PtyServer:
             except OSError:
                 pass
         self.emulator.close()
-        try:
-            if os.path.islink(self.path) and os.readlink(self.path) == self.slave_name:
-                os.unlink(self.path)
-        except OSError:
-            pass
+        self._unlink_path()
         self._drop_lock()               # last: the path is free once its leftovers are gone
 
     # ---- the loop ---------------------------------------------------------------------------
@@ -312,6 +320,7 @@ class PtyServer:
             log.info("port dropped: closing %s", self.slave_name)
             emu.idle()
             self._close_pty()
+            self._unlink_path()         # a pulled USB cable: the device node goes with it
             self._down_since = time.monotonic()
             return
         self._flush_out()

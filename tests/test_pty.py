@@ -19,10 +19,10 @@ BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
 def serve(tmp_path):
     servers = []
 
-    def start(machine="grbl-ring", faults=None, realtime=False):
+    def start(machine="grbl-ring", faults=None, realtime=False, reopen_delay=0.2):
         emulator, world = build_emulator(machine, record=tmp_path / "rec.json", faults=faults)
         path = tmp_path / "ttySIM"
-        server = PtyServer(emulator, path, realtime=realtime, reopen_delay=0.2).start()
+        server = PtyServer(emulator, path, realtime=realtime, reopen_delay=reopen_delay).start()
         stop = threading.Event()
         thread = threading.Thread(target=server.serve, args=(stop,), kwargs={"poll": 0.005}, daemon=True)
         thread.start()
@@ -75,6 +75,39 @@ def test_disconnect_drops_the_port_and_it_comes_back_at_the_same_path(serve):
     assert port.readline() == b"ok\r\n"
     assert port.readline().startswith(b"<Idle|MPos:4.995,")   # the firmware ran on; X6 was lost
     port.close()
+
+
+def test_while_the_port_is_down_its_path_is_gone_and_no_other_pty_answers_there(serve):
+    """A pulled cable takes the device node with it.  The path must not keep naming the closed pty:
+    the system gives its number to the next pty opened (another simulator, a terminal), and a host
+    that opened the path then would talk to that one (seen under load: a jog typed into another
+    test's machine, a resume answered by nobody)."""
+    server, world, path = serve(faults="disconnect@1", reopen_delay=3.0)
+    port = serial.Serial(path, 115200, timeout=1)
+    port.read(len(BANNER))
+    port.write(b"G0 X5\n")                             # the cable is pulled as this line arrives
+    deadline = time.monotonic() + 5
+    while os.path.lexists(path) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    port.close()
+    assert not os.path.lexists(path)
+    others = [os.openpty() for _ in range(4)]          # the freed number goes to one of these
+    try:
+        with pytest.raises(serial.SerialException, match="No such file"):
+            serial.Serial(path, 115200, timeout=0.2)
+        deadline = time.monotonic() + 10
+        while not os.path.exists(path) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert server.generation == 2
+        assert os.readlink(path) not in [os.ttyname(s) for _, s in others]
+        port = serial.Serial(path, 115200, timeout=2)
+        port.write(b"G4 P0\n")
+        assert port.readline() == b"ok\r\n"           # the simulator, not one of the others
+        port.close()
+    finally:
+        for m, s in others:
+            os.close(m)
+            os.close(s)
 
 
 def test_marlin_on_a_pty(serve):
