@@ -21,13 +21,15 @@ from ..progress import report
 from ..model.thread import ThreadModel
 from .palette import WHITE, hex_to_rgb, to_linear
 from .reach import auto_palette, bare_share
+from .model import SHARPEN
 from .runs import RUN_DEFAULTS
 
 log = logging.getLogger(__name__)
 
 __all__ = ["plan_colour", "auto_colour_lines", "COLOUR_DEFAULTS"]
 
-COLOUR_DEFAULTS = {"spool_changes": RUN_DEFAULTS["spool_changes"], "min_run": RUN_DEFAULTS["min_run"], "size": 256}
+COLOUR_DEFAULTS = {"spool_changes": RUN_DEFAULTS["spool_changes"], "min_run": RUN_DEFAULTS["min_run"], "size": 256,
+                   "sharpen": SHARPEN[0]}
 #: the draft's fine canvas: samples across a thread (about half a sample: it only orders the colours)
 DRAFT_SAMPLES = 0.5
 #: the draft's thread is this many times as wide, each of its chords standing for as many of the plan's: a
@@ -58,7 +60,8 @@ def auto_colour_lines(gray, mask, background, colors):
 
 def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=COLOUR_DEFAULTS["size"], crop=None,
                 lines="auto", start_pin=None, model=None, cache=True, spool_changes=COLOUR_DEFAULTS["spool_changes"],
-                min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, face="off"):
+                min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, face="off",
+                sharpen=COLOUR_DEFAULTS["sharpen"]):
     """Plan a colour thread painting.
 
     Parameters
@@ -91,6 +94,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         Centre the crop on the largest face (unless ``crop`` is given) and weigh it more, as for a
         one-thread plan (:func:`stringbot.planner.build.read_for_plan`); ``on`` refuses a picture
         without a face.
+    sharpen : float
+        The threads are laid against the picture sharpened by this much (:func:`.model.sharpened`; 0: as
+        it is); the threads are picked from the picture as it is.
 
     Returns
     -------
@@ -100,7 +106,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     from ..knobs import auto_lines, check_knobs
     from ..model.chords import chord_pixels, chord_space, frame_mask, thread_length
     from ..picture.resample import resize_square
-    from .model import Piece, chord_weights_px, linear_colors
+    from .model import Piece, chord_weights_px, linear_colors, sharpened
     from .runs import Runner, plan_runs
 
     t0 = time.perf_counter()
@@ -154,15 +160,18 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
                       model.width_px(grid) * thicker, nominal=float(np.median(weights)), samples=samples)
         return Runner(space, indptr, indices, weights, piece)
 
+    if not (isinstance(sharpen, (int, float)) and 0 <= sharpen <= 10):
+        raise BadInput(f"sharpen {sharpen!r}; expected 0..10")
+    target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
     grid = draft_size(size)
-    work = runner(size, pic.rgb)
+    work = runner(size, target)
     start_err = work.piece.error()
     t_setup = time.perf_counter()
     report("colour")
     if grid == size:
         runs = plan_runs(work, None, k, spool_changes=spool_changes, min_run=min_run, first=start_pin)
     else:
-        rgb = np.stack([resize_square(pic.rgb[..., c], grid) for c in range(3)], axis=-1)
+        rgb = np.stack([resize_square(target[..., c], grid) for c in range(3)], axis=-1)
         runs = plan_runs(runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER), lambda: work, k,
                          spool_changes=spool_changes, thicker=DRAFT_THICKER,
                          min_run=min_run, first=start_pin)
@@ -180,7 +189,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
               "colors_requested": (f"auto:{requested[1]}" + (":" + ",".join(requested[2]) if len(requested) > 2 else "")
                                    if isinstance(requested, tuple) else list(requested)),
               "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
-              "draft_size": draft_size(size), "face": found and found.to_record(),
+              "draft_size": draft_size(size), "sharpen": float(sharpen), "face": found and found.to_record(),
               "mono_lines_rule": auto_lines(pic.gray, mask)}
     per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
                       "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c
