@@ -5,7 +5,9 @@ method, auto lines, 300 pins, a 0.25 mm thread on 500 mm) is made with
 ``--face off`` and ``--face on``, and with ``--variants``: the face's
 weights alone (the default centred crop), the face's crop alone (its weights
 not raised), and the eyes, mouth and the face's edges weighed
-:data:`FEATURES` more on top of the face.  Each plan is scored as the user
+:data:`FEATURES` more on top of the face; with ``--shapes`` the other weight
+maps of :data:`SHAPES` (smooth bumps, larger and smaller ellipses, the face
+weighed by its local contrast, the stop not weighed).  Each plan is scored as the user
 gets it: drawn by the reference rendering at 512 px against the picture's
 luminance read with the plan's own crop (white outside the frame),
 scikit-image's ``structural_similarity`` (Gaussian window, sigma 1.5), its
@@ -22,7 +24,7 @@ With ``--colors SPEC`` (e.g. ``auto:3``) the plans are colour plans (``stringbot
 its defaults), scored by ``stringbot score``'s colour yardstick (``colour_score``): the luminance
 SSIM inside the face box and over the frame, and the mean CIEDE2000 inside the box and over the frame.
 
-Usage: python benchmarks/bench_face.py [--json] [--variants] [--colors SPEC] [--sheet docs/faces.png] [IMAGE ...]
+Usage: python benchmarks/bench_face.py [--json] [--variants] [--shapes] [--colors SPEC] [--sheet docs/faces.png] [IMAGE ...]
 """
 
 import argparse
@@ -60,6 +62,66 @@ def features(eyes, mouth, edges):
         face.EYE_WEIGHT, face.MOUTH_WEIGHT, face.EDGE_WEIGHT = old
 
 
+#: ``--shapes``: other weight maps over the face, each ``(name, kind, strength, a, b)``: ``ellipse`` the
+#: default's soft-edged ellipse scaled ``a`` times; ``bump`` a Gaussian of sigma ``a`` x ``b`` of the box's
+#: height x width; ``contrast`` the ellipse times ``a + (1 - a) c``, ``c`` the local contrast; ``flat stop``:
+#: the default map, the eye's error (the stop of --lines auto) weighed by the frame alone
+SHAPES = (("ellipse +2.02", "ellipse", 2.02, 1.0, 0), ("ellipse +2.5", "ellipse", 2.5, 1.0, 0),
+          ("ellipse x1.3", "ellipse", 2.0, 1.3, 0), ("ellipse x0.8", "ellipse", 2.0, 0.8, 0),
+          ("bump +2", "bump", 2.0, 0.55, 0.45), ("bump +3", "bump", 3.0, 0.55, 0.45),
+          ("wide bump +2", "bump", 2.0, 0.8, 0.65), ("contrast +2", "contrast", 2.0, 0.3, 0),
+          ("contrast +3", "contrast", 3.0, 0.3, 0), ("contrast +2.5", "contrast", 2.5, 0.6, 0),
+          ("flat stop", "flat stop", 2.0, 1.0, 0))
+
+
+def shape_weights(kind, strength, a, b):
+    """A ``face_weights`` with another map over the face (see :data:`SHAPES`)."""
+    import numpy as np
+    from scipy.ndimage import gaussian_filter
+
+    def weights(face, *, crop, size, gray, times=None, **_):
+        k = size / (2.0 * crop["r"])
+        rows, cols = np.mgrid[0:size, 0:size].astype(np.float64) + 0.5
+        rows, cols = rows / k + crop["cy"] - crop["r"], cols / k + crop["cx"] - crop["r"]
+        cy, cx = face.centre
+        if kind == "bump":
+            bump = np.exp(-0.5 * (((rows - cy) / (a * face.height)) ** 2 + ((cols - cx) / (b * face.width)) ** 2))
+            out = 1.0 + strength * bump
+        else:
+            scale = a if kind == "ellipse" else 1.0
+            d = np.hypot((rows - cy) / (0.62 * scale * face.height), (cols - cx) / (0.5 * scale * face.width))
+            inside = np.clip((1.15 - d) / 0.3, 0.0, 1.0)
+            if kind == "contrast":
+                g, s = np.asarray(gray, np.float64), max(1.0, 0.05 * face.width * k)
+                m = gaussian_filter(g, s)
+                v = np.sqrt(np.maximum(gaussian_filter(g * g, s) - m * m, 0.0))
+                top = float(np.percentile(v[inside > 0.5], 90)) if (inside > 0.5).any() else 1.0
+                inside = inside * (a + (1.0 - a) * np.clip(v / max(top, 1e-6), 0.0, 1.0))
+            out = 1.0 + strength * inside
+        return (out if times is None else out * times).astype(np.float32)
+
+    return weights
+
+
+@contextlib.contextmanager
+def shape(kind, strength, a, b):
+    """Plan with another face weight map (:data:`SHAPES`)."""
+    import numpy as np
+
+    from stringbot.planner import build
+    from stringbot.planner.methods import canvas
+
+    old, grid = build.face_weights, canvas.Canvas._eye_grid
+    if kind == "flat stop":
+        canvas.Canvas._eye_grid = lambda self, t, w: grid(self, t, (np.asarray(w) > 0).astype(np.float64))
+    else:
+        build.face_weights = shape_weights(kind, strength, a, b)
+    try:
+        yield
+    finally:
+        build.face_weights, canvas.Canvas._eye_grid = old, grid
+
+
 def measure(plan, image, box):
     """The plan's face and frame SSIM (``face_scores``) against the picture's luminance at 512 px."""
     from stringbot.planner.model.scoring import WOVEN_SIZE, face_scores
@@ -90,8 +152,8 @@ def sheet(rows, path):
     Image.fromarray(grid).save(path, optimize=True)
 
 
-def run(image, *, variants=False):
-    """Plan ``image`` without and with ``--face`` (and the variants); their figures."""
+def run(image, *, variants=False, shapes=False):
+    """Plan ``image`` without and with ``--face`` (and the variants, the other weight maps); their figures."""
     from stringbot.planner.build import plan_picture
     from stringbot.planner.picture.face import crop_on_face, face_for_plan
     from stringbot.planner.picture.read import default_crop, fit_crop
@@ -104,11 +166,15 @@ def run(image, *, variants=False):
         plans["weights only"] = dict(face="on", crop=default_crop(2 * whole["cx"], 2 * whole["cy"]))
         plans["crop only"] = dict(face="off", crop=crop)
         plans["features"] = dict(face="on")
+    if shapes:
+        plans.update({name: dict(face="on", shape=spec) for name, *spec in SHAPES})
     out = {"image": Path(image).name, "box": [round(v, 1) for v in found.to_record()["box"]], "plans": {},
            "tiles": []}
     for name, kw in plans.items():
         t = time.perf_counter()
-        with features(*(FEATURES if name == "features" else (None, None, None))):
+        spec = kw.pop("shape", None)
+        with features(*(FEATURES if name == "features" else (None, None, None))), \
+                (shape(*spec) if spec else contextlib.nullcontext()):
             p = plan_picture(image, **kw)
         s = measure(p, image, found.to_record()["box"])
         if name in ("off", "on"):
@@ -148,10 +214,11 @@ def main(argv=None):
     ap.add_argument("images", nargs="*", type=Path, default=PORTRAITS)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--variants", action="store_true", help="also the face's crop alone and its weights alone")
+    ap.add_argument("--shapes", action="store_true", help="also the other face weight maps (SHAPES)")
     ap.add_argument("--colors", help="colour plans with these threads (as plan --colors, e.g. auto:3)")
     ap.add_argument("--sheet", type=Path, help="write a contact sheet: luminance | --face off | luminance | --face on")
     a = ap.parse_args(argv)
-    rows = [run_colour(im, a.colors) if a.colors else run(im, variants=a.variants) for im in a.images]
+    rows = [run_colour(im, a.colors) if a.colors else run(im, variants=a.variants, shapes=a.shapes) for im in a.images]
     if a.sheet:
         sheet(rows, a.sheet)
     for r in rows:

@@ -192,3 +192,18 @@ def test_a_colour_plan_with_face_records_it_weighs_it_and_scores_it(tmp_path, as
 def test_face_takes_auto_on_or_off(tmp_path, astronaut):
     code, _, err = run("plan", small(astronaut, tmp_path), "-o", tmp_path / "c.json", *SMALL, "--face", "maybe")
     assert code == 2 and "maybe" in err
+
+
+def test_face_raises_the_face_ssim_as_woven_on_a_small_astronaut(tmp_path, astronaut):
+    """What --face is for: the plan as woven matches the picture better inside the face box (blurred SSIM,
+    as ``stringbot score`` and benchmarks/bench_face.py measure it); here +0.055 at 600 lines, asked > +0.02."""
+    from stringbot.planner.model.scoring import face_scores
+    from stringbot.planner.picture.read import read_picture
+
+    img = small(astronaut, tmp_path, 200)
+    box = face_for_plan(img, face="on").to_record()["box"]
+    s = {}
+    for face in ("off", "on"):
+        p = plan_picture(img, pins=80, size=101, lines=600, face=face)
+        s[face] = face_scores(p, read_picture(img, size=256, crop=p.crop, gray="luminance").gray, box=box)
+    assert s["on"]["ssim_face_blurred"] > s["off"]["ssim_face_blurred"] + 0.02

@@ -30,7 +30,10 @@ The weights
     (Gaussian spots) and the face's edges (the picture's gradient inside it),
     but measured as woven that lowered the face's SSIM, so by default they get
     nothing more (:data:`EYE_WEIGHT`, :data:`MOUTH_WEIGHT`,
-    :data:`EDGE_WEIGHT`).  The eyes and the mouth are placed by the face
+    :data:`EDGE_WEIGHT`).  Smooth Gaussian bumps, larger or smaller
+    ellipses and the ellipse weighed by the face's local contrast did no
+    better either (``benchmarks/bench_face.py --shapes``).  The eyes and the
+    mouth are placed by the face
     box's proportions (:data:`EYE_ROW`, :data:`EYE_COL`, :data:`MOUTH_ROW`),
     which placed them better than a second look for the darkest spots inside
     the box (docs/planner.md, "Faces").
