@@ -10,7 +10,7 @@ from ..errors import BadInput
 
 #: ``plan`` options that are knobs of the mono planner: refused with ``--colors``.
 MONO_ONLY = ("method", "disconnected", "importance", "gray", "alpha", "style", "beta", "gamma", "T", "epsilon",
-             "iterations", "refine", "polish", "fit")
+             "iterations", "refine", "polish", "polish_passes", "fit")
 
 
 def colour_names(colors):

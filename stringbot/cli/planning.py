@@ -78,6 +78,9 @@ class _Lines(click.ParamType):
 @click.option("--polish", type=int, default=None,
               help="Residual: pins the as-woven polish revisits: each change judged by the piece as woven, seen "
                    "from a step away (0: none) [default: 1000 with --lines auto, 0 with a line count].")
+@click.option("--polish-passes", "polish_passes", type=int, default=None, metavar="N",
+              help="Residual: N passes of inserted and deleted pins after the polish, each kept only if the piece "
+                   "as woven gets better: slower, a little better (0..20; 0: none) [default: 0].")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")
@@ -94,7 +97,7 @@ class _Lines(click.ParamType):
                    "[default: 100].")
 def plan_cmd(image, output, preview, method, disconnected, pins, machine, diameter_mm, thread_mm, frame, crop, fit,
              face, start_pin, size, lines, importance, gray, style, alpha, beta, gamma, T, epsilon, iterations, refine,
-             polish, no_cache, force, colors, background, spool_changes, min_run):
+             polish, polish_passes, no_cache, force, colors, background, spool_changes, min_run):
     """Plan a thread painting of IMAGE: writes the plan and a preview PNG."""
     import os
 
@@ -155,7 +158,7 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
                              importance=importance, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma,
                              T=T, epsilon=epsilon, iterations=iterations, cache=not no_cache,
                              diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish,
-                             preview=PREVIEW_SIZE, face=face)
+                             polish_passes=polish_passes, preview=PREVIEW_SIZE, face=face)
     finally:
         shown.close()
     if machine is not None:

@@ -47,7 +47,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                  alpha=DEFAULTS["alpha"], beta=None, gamma=None, T=None,
                  epsilon=DEFAULTS["epsilon"], iterations=DEFAULTS["iterations"], cache=True, rng=None,
                  picture=None, reference=None, greedy_reference_radius=DEFAULTS["greedy_reference_radius"],
-                 diameter_mm=None, thread_mm=None, fit=False, refine=None, polish=None, preview=None, face="off"):
+                 diameter_mm=None, thread_mm=None, fit=False, refine=None, polish=None, polish_passes=None, preview=None, face="off"):
     """Plan a thread painting of a picture.
 
     Parameters
@@ -96,6 +96,10 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         ``lines="auto"``, 0 with a line count (the paper's SSIM at a given
         line count rewards the pixel-level drawing, which the polish trades
         for the piece as seen).
+    polish_passes : int or None
+        Residual only: passes of inserts and deletes after the polish
+        (:func:`~stringbot.planner.methods.polish.move_passes`; slower, a
+        little better); None or 0: none.
     preview : int or None
         The side of the drawing as woven the caller will make
         (:func:`~stringbot.planner.model.render.draw_woven`, black on white): a
@@ -113,7 +117,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     knobs = settle(pins=pins, frame=frame, size=size, crop=crop, lines=lines, start_pin=start_pin, method=method,
                    disconnected=disconnected, gray=gray, style=style, alpha=alpha, beta=beta, gamma=gamma, T=T,
                    epsilon=epsilon, iterations=iterations, greedy_reference_radius=greedy_reference_radius,
-                   diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish)
+                   diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish,
+                   polish_passes=polish_passes)
     pic, mask, weights, found = read_for_plan(path, knobs, picture=picture, importance=importance, rng=rng, face=face)
     how = knobs.method
     target = None if knobs.lines == "auto" and how.stops_itself else \

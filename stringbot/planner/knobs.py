@@ -42,7 +42,7 @@ class Knobs:
     given : dict
         The method's knobs as given (None: not given) and the refinement's and polish's pins:
         ``alpha``, ``beta``, ``gamma``, ``T``, ``epsilon``, ``iterations``, ``style``,
-        ``disconnected``, ``refine``, ``polish``, ``greedy_reference_radius``.
+        ``disconnected``, ``refine``, ``polish``, ``polish_passes``, ``greedy_reference_radius``.
     """
 
     method: Method
@@ -119,7 +119,8 @@ def _only_for(knob, names, how):
 
 
 def settle(*, pins, frame, size, crop, lines, start_pin, method, disconnected, gray, style, alpha, beta, gamma,
-           T, epsilon, iterations, greedy_reference_radius, diameter_mm, thread_mm, fit, refine, polish):
+           T, epsilon, iterations, greedy_reference_radius, diameter_mm, thread_mm, fit, refine, polish,
+           polish_passes=None):
     """Check every knob and fill in the method's defaults (the knobs as :func:`plan_picture` takes them).
 
     Returns
@@ -149,8 +150,9 @@ def settle(*, pins, frame, size, crop, lines, start_pin, method, disconnected, g
                        f"{method} has none of them")
     if fit and crop is not None:
         raise BadInput("--fit and --crop both choose the part of the picture to paint; give one of them")
-    if "polish" not in how.knobs and (refine is not None or polish is not None):
-        _only_for("polish", " and ".join(f"--{n}" for n, v in (("refine", refine), ("polish", polish)) if v is not None),
+    if "polish" not in how.knobs and any(v is not None for v in (refine, polish, polish_passes)):
+        _only_for("polish", " and ".join(f"--{n}" for n, v in (("refine", refine), ("polish", polish),
+                                                                ("polish-passes", polish_passes)) if v is not None),
                   how)
     if polish is None:
         polish = DEFAULTS["polish"] if lines == "auto" else 0
@@ -159,8 +161,17 @@ def settle(*, pins, frame, size, crop, lines, start_pin, method, disconnected, g
     for name, v in (("refine", refine), ("polish", polish)):
         if not (isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 1_000_000):
             raise BadInput(f"--{name} {v}; expected 0..1000000 pins")
+    from .methods.polish import MAX_PASSES
+
+    if polish_passes is None:
+        polish_passes = 0
+    if not (isinstance(polish_passes, int) and not isinstance(polish_passes, bool) and 0 <= polish_passes <= MAX_PASSES):
+        raise BadInput(f"--polish-passes {polish_passes}; expected 0..{MAX_PASSES} passes")
+    if polish_passes and not polish:
+        raise BadInput(f"--polish-passes {polish_passes} follows the polish, which is off here (--polish 0, or a "
+                       "line count); expected --lines auto (the default) or --polish N with it")
     given = {"alpha": alpha, "beta": beta, "gamma": gamma, "T": T, "epsilon": epsilon, "iterations": iterations,
              "style": style, "disconnected": bool(disconnected), "refine": refine, "polish": polish,
-             "greedy_reference_radius": greedy_reference_radius}
+             "polish_passes": polish_passes, "greedy_reference_radius": greedy_reference_radius}
     return Knobs(method=how, pins=pins, frame=frame, size=size, lines=lines, start_pin=None if picks else start_pin,
                  crop=crop, fit=bool(fit), gray=gray, model=model, given=given)

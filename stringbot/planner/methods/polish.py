@@ -18,6 +18,16 @@ always gives the same plan).  They go in blocks of two, each block's
 proposals made before the block ahead of it is settled, so that on two cores
 two processes take turns (:mod:`stringbot.planner.methods.woven_helper`) and reach
 the same plan.
+
+On request (``passes``, the ``--polish-passes`` option of ``stringbot plan``;
+off by default, as it costs about half as much again), passes of
+Prem-Dharshan's two other moves follow, in one process: *inserting* a pin
+(``a-c -> a-q-c`` at the ``budget`` chords of highest error slope, ``q``
+among the :data:`INSERT_CANDIDATES` pins whose two chords have the highest
+slope; the line count grows) and *deleting* one (``a-p-c -> a-c`` at the
+``budget`` pins that draw most where it is too dark).  Each is judged as the
+reroutes are, by the estimate first and then exactly, and kept only when the
+exact as-woven error drops (:func:`move_passes`).
 """
 
 import logging
@@ -28,12 +38,17 @@ from ..model.lines import PinLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "POLISH_SPACING", "BLOCK"]
+__all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "move_passes",
+           "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES", "MAX_PASSES"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
 POLISH_SPACING = 2.0
 #: pins whose proposals are made at a time, before the block ahead is settled (on two cores, by one process)
 BLOCK = 2
+#: pins tried for each insert, those whose two chords have the highest error slope first (the first kept wins)
+INSERT_CANDIDATES = 3
+#: the most passes of inserts and deletes ``--polish-passes`` takes
+MAX_PASSES = 20
 
 
 def polish_lines(space, canvas):
@@ -151,7 +166,94 @@ def _changed(proposal):
     return [(a, p), (p, c)], [(a, q), (q, c)]
 
 
-def polish_plan(canvas, seq, space, *, budget, partner=None):
+def _slopes_from(canvas, pin_lines, a, c, buf):
+    """The error slope of going ``a -> q -> c``, for every pin ``q`` (-inf where a chord is missing)."""
+    from_a, from_c = buf
+    oa, sa = canvas.scores(pin_lines, a)
+    oc, sc = canvas.scores(pin_lines, c)
+    from_a.fill(-np.inf)
+    from_a[oa] = sa
+    from_c.fill(-np.inf)
+    from_c[oc] = sc
+    total = from_a + from_c
+    total[[a, c]] = -np.inf
+    return total
+
+
+def _try(canvas, out, inn):
+    """Make the change if the estimate says it helps and the exact error drops; True if made."""
+    if not canvas.helps(chords_out=out, chords_in=inn):
+        return False
+    if canvas.apply(chords_out=out, chords_in=inn) < 0.0:  # exact
+        return True
+    canvas.apply(chords_out=inn, chords_in=out)  # the estimate erred where the chords overlap
+    return False
+
+
+def insert_pass(canvas, seq, pin_lines, *, budget):
+    """Insert pins (``a-c -> a-q-c``) at the ``budget`` chords of highest error slope; ``seq`` is
+    changed in place.  Returns how many pins were inserted."""
+    npins = len(canvas.pin_xy)
+    buf = (np.empty(npins), np.empty(npins))
+    means = canvas.chord_scores(pin_lines, list(zip(seq[:-1], seq[1:])))
+    top = sorted(int(j) for j in np.argsort(-means, kind="stable")[:budget])
+    made = 0
+    for j in reversed(top):  # from the end: an insert does not shift the positions still to come
+        a, c = seq[j], seq[j + 1]
+        total = _slopes_from(canvas, pin_lines, a, c, buf)
+        for q in np.argsort(-total, kind="stable")[:INSERT_CANDIDATES]:
+            q = int(q)
+            if np.isfinite(total[q]) and _try(canvas, [(a, c)], [(a, q), (q, c)]):
+                seq.insert(j + 1, q)
+                made += 1
+                break
+    return made
+
+
+def delete_pass(canvas, seq, pin_lines, *, budget):
+    """Delete pins (``a-p-c -> a-c``) among the ``budget`` that draw most where it is too dark, where
+    ``a-c`` is a chord not drawn yet; ``seq`` is changed in place.  Returns how many were deleted."""
+    made = 0
+    for k in sorted(badness_order(canvas, seq, pin_lines)[:budget], reverse=True):
+        a, p, c = seq[k - 1], seq[k], seq[k + 1]
+        if a == c or canvas.uses[a, c] > 0:
+            continue
+        if _try(canvas, [(a, p), (p, c)], [(a, c)]):
+            del seq[k]
+            made += 1
+    return made
+
+
+def move_passes(canvas, seq, pin_lines, *, passes, budget):
+    """``passes`` passes of inserts then deletes (:func:`insert_pass`, :func:`delete_pass`), in this process;
+    ``seq`` is changed in place.
+
+    Parameters
+    ----------
+    canvas : WovenCanvas
+        Holds ``seq`` drawn; kept in step with the changes.
+    seq : list of int
+    pin_lines : PinLines
+        As :func:`polish_lines` makes them.
+    passes : int
+    budget : int
+        Chords (inserts) and pins (deletes) tried in each pass.
+
+    Returns
+    -------
+    dict
+        ``inserted`` and ``deleted``: pins, over all the passes.
+    """
+    inserted = deleted = 0
+    for n in range(passes):
+        i = insert_pass(canvas, seq, pin_lines, budget=budget)
+        d = delete_pass(canvas, seq, pin_lines, budget=budget)
+        inserted, deleted = inserted + i, deleted + d
+        log.info("polish pass %d: %d pins inserted, %d deleted", n + 1, i, d)
+    return {"inserted": inserted, "deleted": deleted}
+
+
+def polish_plan(canvas, seq, space, *, budget, passes=0, partner=None):
     """Polish a pin sequence against the picture as woven (see the module notes).
 
     Parameters
@@ -161,7 +263,10 @@ def polish_plan(canvas, seq, space, *, budget, partner=None):
     seq : list of int
     space : ChordSpace
     budget : int
-        Pins to revisit.
+        Pins to revisit (and, with ``passes``, chords and pins each pass tries).
+    passes : int
+        Passes of inserts and deletes after the reroutes (:func:`move_passes`), in this process
+        once the partner is closed; 0: none.
     partner : callable, optional
         ``partner(canvas, seq, order, pin_lines)`` returns a partner for
         :func:`polish_pins` (a forked process: :func:`~stringbot.planner.methods.woven_helper.twin`),
@@ -172,7 +277,8 @@ def polish_plan(canvas, seq, space, *, budget, partner=None):
     seq : list of int
     stats : dict
         ``tried``, ``rerouted``, ``woven_rms_before`` and ``woven_rms`` (the model's as-woven
-        error, rms over the frame).
+        error, rms over the frame); with ``passes``, ``passes``, ``inserted``, ``deleted`` and
+        ``woven_rms_rerouted`` (the error before the passes).
     """
     seq = [int(p) for p in seq]
     if len(seq) < 3 or budget <= 0:
@@ -187,9 +293,15 @@ def polish_plan(canvas, seq, space, *, budget, partner=None):
         if mate is not None:
             mate.close()
     area = max(float(np.sum(canvas.s ** 2)), 1e-12)
-    stats = {"tried": len(order), "rerouted": rerouted,
-             "woven_rms_before": round(float(np.sqrt(max(e0, 0.0) / area)), 5),
-             "woven_rms": round(float(np.sqrt(max(canvas.error(), 0.0) / area)), 5)}
+
+    def rms(e):
+        return round(float(np.sqrt(max(e, 0.0) / area)), 5)
+
+    stats = {"tried": len(order), "rerouted": rerouted, "woven_rms_before": rms(e0)}
+    if passes > 0:
+        stats.update(passes=int(passes), woven_rms_rerouted=rms(canvas.error()),
+                     **move_passes(canvas, seq, pin_lines, passes=passes, budget=budget))
+    stats["woven_rms"] = rms(canvas.error())
     log.info("polish: %d of %d pins rerouted; as-woven rms %.4f -> %.4f", rerouted, len(order),
              stats["woven_rms_before"], stats["woven_rms"])
     return seq, stats

@@ -188,12 +188,13 @@ def run(job):
     choice under the thread model, then the refinement (a line count) or the polish (``lines="auto"``)."""
     k = job.knobs
     seq, stats, drawings = _plan(job.space, job.picture, job.mask, job.weights, job.lines, job.model,
-                                 start_pin=job.start_pin, refine=k["refine"], polish=k["polish"], preview=k["preview"])
-    params = {"refine": k["refine"], "polish": k["polish"], "thread_px": round(job.model.width_px(k["size"]), 4)}
+                                 start_pin=job.start_pin, refine=k["refine"], polish=k["polish"], preview=k["preview"],
+                                 passes=k.get("polish_passes", 0))
+    params = {"refine": k["refine"], "polish": k["polish"], "polish_passes": k.get("polish_passes", 0), "thread_px": round(job.model.width_px(k["size"]), 4)}
     return Outcome(seq, params, stats, drawings=drawings)
 
 
-def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None):
+def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None, passes=0):
     """The residual choice under the thread model, then refinement and polish: ``(seq, stats, drawings)``."""
     from .polish import polish_plan
     from .refine import refine_sequence
@@ -217,7 +218,8 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         if two_cores():  # a helper process draws the polish's canvas while the threads are chosen
             from .woven_helper import TwinDrawing
 
-            drawing = None if preview is None else TwinDrawing(preview, model)
+            # the twin draws the preview of the reroutes only: after passes of inserts and deletes, drawn here
+            drawing = None if preview is None or passes else TwinDrawing(preview, model)
             helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing,
                                  patience=PATIENCE)
     try:
@@ -245,13 +247,13 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
             return seq, out, None
         t = time.perf_counter()
         report("polishing")
-        done = None if helper is None else helper.finish(seq, polish)
+        done = None if helper is None else helper.finish(seq, polish, passes)
         out["polish_processes"] = 1 if done is None else 2
         drawings = None if done is None else helper.drawing
         if done is None:
             woven = woven_canvas(target, w, space, model)
             woven.build(list(zip(seq[:-1], seq[1:])))
-            done = polish_plan(woven, seq, space, budget=polish)
+            done = polish_plan(woven, seq, space, budget=polish, passes=passes)
         seq, ps = done
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
         return seq, out, drawings
