@@ -20,7 +20,7 @@ two processes take turns (:mod:`stringbot.planner.methods.woven_helper`) and rea
 the same plan.
 
 On request (``passes``, the ``--polish-passes`` option of ``stringbot plan``;
-off by default, as it costs about half as much again), passes of
+off by default: three passes about double the plan's CPU), passes of
 Prem-Dharshan's two other moves follow, in one process: *inserting* a pin
 (``a-c -> a-q-c`` at the ``budget`` chords of highest error slope, ``q``
 among the :data:`INSERT_CANDIDATES` pins whose two chords have the highest
