@@ -111,6 +111,10 @@ CASES = [
     "plan camera.png -o c.json --colors white",
     "plan camera.png -o c.json --colors black --background black",
     "plan camera.png -o c.json --colors black,red --background blak",
+    # issue 23: the insert/delete passes
+    "plan camera.png -o pp.json --polish-passes 21",
+    "plan camera.png -o pp.json --polish-passes 2 --lines 50",
+    "plan camera.png -o pp.json --polish-passes 2 --colors auto:3",
     # issue 14: settings check
     "machines check no-such-machine",
     "machines check grbl-ring --port /dev/ttyNOPE",
