@@ -66,16 +66,9 @@ def propose(canvas, seq, k, pin_lines, scratch):
     """The reroute of pin ``k`` worth trying: ``(k, a, p, c, q)`` when going through ``q`` instead of
     ``p = seq[k]`` (between ``a`` and ``c``) lowers the error by the estimate (which writes
     nothing), else None.  ``q`` is the pin whose two chords have the highest error slope."""
-    from_a, from_c = scratch
     a, p, c = seq[k - 1], seq[k], seq[k + 1]
-    oa, sa = canvas.scores(pin_lines, a)
-    oc, sc = canvas.scores(pin_lines, c)
-    from_a.fill(-np.inf)
-    from_a[oa] = sa
-    from_c.fill(-np.inf)
-    from_c[oc] = sc
-    total = from_a + from_c
-    total[[a, c, p]] = -np.inf
+    total = _slopes_from(canvas, pin_lines, a, c, scratch)
+    total[p] = -np.inf
     q = int(np.argmax(total))
     if not np.isfinite(total[q]):
         return None
