@@ -81,12 +81,18 @@ def settle(canvas, seq, proposal):
     """Make a proposal of :func:`propose` if its pins are still there and the exact error drops
     (else leave the drawing as it was); ``seq`` is changed in place.  Returns 1 if made, else 0."""
     if _touches(seq, proposal):
-        old, new = _changed(proposal)
-        if canvas.apply(chords_out=old, chords_in=new) < 0.0:  # exact
+        if _keep_if_lower(canvas, *_changed(proposal)):
             seq[proposal[0]] = proposal[4]
             return 1
-        canvas.apply(chords_out=new, chords_in=old)  # the estimate erred where the chords overlap
     return 0
+
+
+def _keep_if_lower(canvas, out, inn):
+    """Make the change; undo it unless the exact error dropped.  True if kept."""
+    if canvas.apply(chords_out=out, chords_in=inn) < 0.0:  # exact
+        return True
+    canvas.apply(chords_out=inn, chords_in=out)  # the estimate erred where the chords overlap
+    return False
 
 
 def _touches(seq, proposal):
@@ -175,12 +181,7 @@ def _slopes_from(canvas, pin_lines, a, c, buf):
 
 def _try(canvas, out, inn):
     """Make the change if the estimate says it helps and the exact error drops; True if made."""
-    if not canvas.helps(chords_out=out, chords_in=inn):
-        return False
-    if canvas.apply(chords_out=out, chords_in=inn) < 0.0:  # exact
-        return True
-    canvas.apply(chords_out=inn, chords_in=out)  # the estimate erred where the chords overlap
-    return False
+    return canvas.helps(chords_out=out, chords_in=inn) and _keep_if_lower(canvas, out, inn)
 
 
 def insert_pass(canvas, seq, pin_lines, *, budget):
