@@ -112,7 +112,7 @@ def models(plan, image):
     # the polish's fine canvas box-filtered to 512 px: the model's own drawing at the scorer's size
     k = woven.F // 512
     if k >= 1 and woven.F % 512 == 0:
-        fine = (woven.Sf > 0).reshape(512, k, woven.F).sum(axis=1).reshape(512, 512, k).sum(axis=2) / (k * k)
+        fine = (woven.fine_counts() > 0).reshape(512, k, woven.F).sum(axis=1).reshape(512, 512, k).sum(axis=2) / (k * k)
         out["polish fine"] = (1.0 - fine, None)
     return out
 

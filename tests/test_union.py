@@ -47,3 +47,17 @@ def test_two_threads_side_by_side_half_a_thread_apart_cover_one_and_a_half_threa
         one = _drawn(stamp, [(0, 1)], xy).sum()
         both = _drawn(stamp, [(0, 1), (2, 3)], xy).sum()
         assert (abs(both / one - 1.5) < 0.05) == close
+
+
+@pytest.mark.parametrize("m, f", [(32, 8), (20, 5), (16, 3)])
+def test_the_tiled_canvas_is_the_same_samples_each_pixels_together(m, f):
+    stamp = UnionStamp(m, f, 0.3)
+    F = m * f
+    every = np.arange(F * F)
+    tiled = stamp.tile(every)
+    assert np.array_equal(np.sort(tiled), every)  # a reordering of the samples
+    assert np.array_equal(stamp.tiled_cells(tiled), stamp.cells(every))  # each in its pixel
+    assert np.array_equal(np.sort(tiled.reshape(F, F)[:f, f:2 * f].ravel()), np.arange(f * f, 2 * f * f))  # pixel (0, 1)
+    values = np.zeros(F * F, dtype=np.int64)
+    values[tiled] = every  # a canvas of row-major numbers, kept tiled
+    assert np.array_equal(stamp.untile(values), every.reshape(F, F))

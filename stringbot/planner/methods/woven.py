@@ -70,7 +70,7 @@ class WovenCanvas(EyeError):
         self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
         f = fine_factor(width_px, m)  # the thread about one fine pixel wide
         self.f, self.F = f, m * f
-        self.Sf = np.zeros(self.F * self.F, dtype=COUNT)  # threads over each fine pixel
+        self.Sf = np.zeros(self.F * self.F, dtype=COUNT)  # threads over each fine pixel, tiled (UnionStamp.tile)
         self._stamp = UnionStamp(m, f, width_px)
         self._fp = {}
         EyeError.__init__(self, target, weights, sigma=float(sigma) * m)
@@ -91,11 +91,14 @@ class WovenCanvas(EyeError):
         ``cu`` they fall in (each once; fine pixel ``i`` is in ``cu[inv[i]]``); cached."""
         fp = self.stamped(a, b)
         if fp[2] is None:  # the grid pixels: found the first time a change needs them (drawing does not)
-            fp[3], fp[2] = unique(self._stamp.cells(fp[0]), self._mark)
+            fp[3], fp[2] = unique(self._stamp.tiled_cells(fp[0]), self._mark)
         return fp
 
     def stamped(self, a, b):
-        """``[flat, None, inv, cu]`` of chord ``(a, b)`` as cached (``inv``, ``cu`` None until needed)."""
+        """``[flat, None, inv, cu]`` of chord ``(a, b)`` as cached (``inv``, ``cu`` None until needed);
+        ``flat``: its samples on the tiled fine canvas (:meth:`UnionStamp.tile
+        <stringbot.planner.model.union.UnionStamp.tile>`: a pixel's samples together, fewer cache misses
+        where a change reads and writes them)."""
         key = (a, b) if a < b else (b, a)
         fp = self._fp.get(key)
         if fp is None:
@@ -104,9 +107,13 @@ class WovenCanvas(EyeError):
                     del self._fp[k]
                 if len(self._fp) >= MAX_CACHED // 2:
                     self._fp.clear()  # a footprint is stamped again exactly as it was
-            flat = self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]])
+            flat = self._stamp.tile(self._stamp(self.pin_xy[key[0]], self.pin_xy[key[1]]))
             fp = self._fp[key] = [flat, None, None, None]
         return fp
+
+    def fine_counts(self):
+        """Threads over each fine pixel as the ``F x F`` canvas (row-major; kept tiled)."""
+        return self._stamp.untile(self.Sf)
 
     @property
     def max_samples(self):
@@ -140,8 +147,8 @@ class WovenCanvas(EyeError):
     def finish(self):
         """The grid, the error and its slope from the fine canvas as drawn; returns ``E``."""
         m, f = self.size, self.f
-        covered = (self.Sf > 0).reshape(m, f, m * f).sum(axis=1, dtype=np.int32)
-        self.reset(covered.reshape(m, m, f).sum(axis=2).ravel() / float(f * f))
+        covered = (self.Sf > 0).reshape(m * m, f * f).sum(axis=1, dtype=np.int32)  # tiled: a pixel's samples
+        self.reset(covered / float(f * f))
         self.u[self.pidx] = self.s * (1.0 - self.D)
         self.g = self.u * self.G
         return self.E

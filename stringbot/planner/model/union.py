@@ -143,6 +143,32 @@ class UnionStamp:
             parts.append(base[n > j] + j * smin)
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
+    def tile(self, flat):
+        """The samples ``flat`` (row-major, as :meth:`__call__` gives them) in the tiled order of a canvas
+        that keeps each pixel's ``f x f`` samples together (pixel after pixel, row-major within each):
+        sample ``(r, c)`` at ``(r // f * m + c // f) * f * f + r % f * f + c % f``.  A thread's samples
+        in one pixel then lie side by side in memory (a few cache lines where they took one each)."""
+        F, f, m = self.F, self.f, self.m
+        flat = np.asarray(flat)
+        if self._pow2:
+            sF, sf, sm = F.bit_length() - 1, f.bit_length() - 1, m.bit_length() - 1
+            r, c = flat >> sF, flat & (F - 1)
+            return ((((r >> sf) << sm) | (c >> sf)) << (2 * sf)) | ((r & (f - 1)) << sf) | (c & (f - 1))
+        r, c = np.divmod(flat, F)
+        return ((r // f) * m + c // f) * (f * f) + (r % f) * f + c % f
+
+    def tiled_cells(self, tiled):
+        """The pixel (flat, ``row * m + col``, int64) of each sample of a tiled canvas (:meth:`tile`)."""
+        tiled = np.asarray(tiled).astype(np.int64)
+        if self._pow2:
+            return tiled >> (2 * (self.f.bit_length() - 1))
+        return tiled // (self.f * self.f)
+
+    def untile(self, counts):
+        """A tiled canvas's values (:meth:`tile`, flat) as the ``F x F`` canvas, row-major."""
+        f, m = self.f, self.m
+        return np.asarray(counts).reshape(m, m, f, f).transpose(0, 2, 1, 3).reshape(self.F, self.F)
+
     def cells(self, flat):
         """The pixel (flat, ``row * m + col``, int64) of each sample ``flat``."""
         F, f, m = self.F, self.f, self.m
