@@ -51,13 +51,13 @@ def test_float32_stays_float32_and_close():
 
 
 @pytest.mark.parametrize("sigma", [0.7, 1.0, 6.0])
-def test_gaussian_blur_is_scipys_mirrored_and_unsharp_steepens_an_edge(sigma):
+def test_gaussian_blur_is_scipys_and_unsharp_steepens_an_edge(sigma):
     from scipy.ndimage import gaussian_filter
 
     from stringbot.planner.picture.resample import gaussian_blur, unsharp
 
     a = np.random.default_rng(3).random((40, 40))
-    np.testing.assert_allclose(gaussian_blur(a, sigma), gaussian_filter(a, sigma, mode="mirror"), atol=1e-12)
+    np.testing.assert_allclose(gaussian_blur(a, sigma), gaussian_filter(a, sigma, mode="reflect"), atol=1e-12)
     step = np.zeros((80, 80))
     step[:, 40:] = 0.6
     s = unsharp(step, amount=1.5, sigma=sigma)

@@ -71,7 +71,7 @@ LENGTH_POWER = 0.3
 #: the chooser and the refinement lay threads against the darkness sharpened, ``t + amount (t - blur(t))``
 #: clipped to [0, 1] (:func:`~stringbot.planner.picture.resample.unsharp`; this amount, the blur's sigma this
 #: fraction of the working size: 6 px at 401): the threads go to the picture's edges, which the plain SSIM
-#: rewards (at ThreadTone's line counts ThreadTone + 0.061 on average, from + 0.037); the stop, the eye's
+#: rewards (at ThreadTone's line counts ThreadTone + 0.062 on average, from + 0.037); the stop, the eye's
 #: half of the score and the polish judge the piece against the picture itself (docs/planner.md, "Quality")
 SHARPEN = (1.5, 0.015)
 #: Points per frame side at which the choice samples each chord: a plan with a line count is judged pixel by

@@ -13,8 +13,8 @@ so each is a small matrix per axis:
 
 ``tests/test_resample.py`` checks the result against skimage to 1e-9.
 
-:func:`gaussian_blur` is the same Gaussian at a size kept (``scipy.ndimage.gaussian_filter``'s with
-``mode="mirror"``), and :func:`unsharp` the unsharp mask the planners lay threads against.
+:func:`gaussian_blur` is the same Gaussian at a size kept (``scipy.ndimage.gaussian_filter``'s, reflected at
+the edges), and :func:`unsharp` the unsharp mask the planners lay threads against.
 """
 
 import numpy as np
@@ -101,9 +101,15 @@ def resize_square(image, size, *, anti_aliasing=True):
     return np.clip(out, a.min(initial=np.inf), a.max(initial=-np.inf))
 
 
+def _reflect(idx, n):
+    """Indices reflected into ``0..n-1`` about the picture's edges (``c b a | a b c d | d c b``)."""
+    idx = np.mod(idx, 2 * n)
+    return np.where(idx >= n, 2 * n - 1 - idx, idx)
+
+
 def gaussian_blur(image, sigma):
-    """A square 2-D array blurred by a Gaussian of ``sigma`` pixels, cut at 4 sigma, mirrored at the edges
-    (``scipy.ndimage.gaussian_filter(image, sigma, mode="mirror")``), float64."""
+    """A square 2-D array blurred by a Gaussian of ``sigma`` pixels, cut at 4 sigma, reflected at the edges
+    (``scipy.ndimage.gaussian_filter(image, sigma)``, its default ``mode="reflect"``), float64."""
     a = np.asarray(image, dtype=np.float64)
     if a.ndim != 2 or a.shape[0] != a.shape[1]:
         raise ValueError(f"image of shape {a.shape}; expected a square")
@@ -111,7 +117,7 @@ def gaussian_blur(image, sigma):
         return a.copy()
     off, k = _gaussian(float(sigma))
     n = a.shape[0]
-    idx = _mirror(np.arange(n)[:, None] + off[None, :], n)
+    idx = _reflect(np.arange(n)[:, None] + off[None, :], n)
     w = np.broadcast_to(k, idx.shape)
     return _along_rows(_along_rows(a, idx, w).T, idx, w).T
 
