@@ -48,3 +48,19 @@ def test_float32_stays_float32_and_close():
     ours = resize_square(a, 1001, anti_aliasing=False)
     assert ours.dtype == np.float32
     np.testing.assert_allclose(ours, resize(a.astype(float), (1001, 1001), order=1, anti_aliasing=False), atol=1e-5)
+
+
+@pytest.mark.parametrize("sigma", [0.7, 1.0, 6.0])
+def test_gaussian_blur_is_scipys_and_unsharp_steepens_an_edge(sigma):
+    from scipy.ndimage import gaussian_filter
+
+    from stringbot.planner.picture.resample import gaussian_blur, unsharp
+
+    a = np.random.default_rng(3).random((40, 40))
+    np.testing.assert_allclose(gaussian_blur(a, sigma), gaussian_filter(a, sigma, mode="reflect"), atol=1e-12)
+    step = np.zeros((80, 80))
+    step[:, 40:] = 0.6
+    s = unsharp(step, amount=1.5, sigma=sigma)
+    # clipped below the edge, overshooting above it, as it was far from it
+    assert s[5, 39] == 0.0 and s[5, 40] > 0.65 and s[5, 79] == pytest.approx(0.6, abs=1e-3)
+    assert np.array_equal(unsharp(step, amount=0, sigma=sigma), step)

@@ -25,10 +25,17 @@ def disc_picture(size=101):
     return g
 
 
-def canvas_of(g, space, width_px=0.2):
+def canvas_of(g, space, width_px=0.2, *, sharp=False):
+    """The chooser's canvas of gray ``g``; ``sharp``: against its darkness sharpened, as the planner's."""
     size = g.shape[0]
     mask = frame_mask(size, "circle")
-    return Canvas(np.where(mask, 1 - g / 255.0, 0.0), mask.astype(float), space.pin_xy, width_px)
+    t = 1 - g / 255.0
+    if sharp:
+        from stringbot.planner.methods.residual import SHARPEN
+        from stringbot.planner.picture.resample import unsharp
+
+        t = unsharp(t, amount=SHARPEN[0], sigma=SHARPEN[1] * size)
+    return Canvas(np.where(mask, t, 0.0), mask.astype(float), space.pin_xy, width_px)
 
 
 def test_residual_draws_where_the_picture_is_dark_and_stops_by_itself():
@@ -175,7 +182,8 @@ def test_residual_starts_at_an_end_of_its_best_chord_unless_told():
     g = disc_picture()
     space = chord_space(80)
     pl = PinLines(space, g.shape[0], nearest=True)
-    canvas = canvas_of(g, space, width_px=DEFAULT_THREAD_MM / DEFAULT_DIAMETER_MM * g.shape[0])  # the default thread
+    # the default thread, the target sharpened as the planner sees it
+    canvas = canvas_of(g, space, width_px=DEFAULT_THREAD_MM / DEFAULT_DIAMETER_MM * g.shape[0], sharp=True)
 
     def top(a):
         others, pix, starts, counts = pl.get_with_counts(a)

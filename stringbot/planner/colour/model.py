@@ -28,6 +28,7 @@ misjudged a light thread on a dark board; docs/planner.md, "Colour".)
 import numpy as np
 
 from ..model.union import UnionStamp, fine_per_pixel, unique
+from ..picture.resample import unsharp
 from .palette import hex_to_rgb, lab, to_linear, to_srgb
 
 __all__ = ["Piece", "chord_weights_px", "linear_colors", "sharpened", "LIGHTNESS", "SHARPEN"]
@@ -57,9 +58,7 @@ def sharpened(rgb, *, amount=SHARPEN[0], sigma=SHARPEN[1]):
         return np.asarray(rgb, dtype=np.float64)
     lin = to_linear(rgb)
     y = lin @ _Y
-    from scipy.ndimage import gaussian_filter
-
-    ys = np.clip(y + amount * (y - gaussian_filter(y, sigma, mode="reflect", truncate=4.0)), 0.0, 1.0)
+    ys = unsharp(y, amount=amount, sigma=sigma)
     return to_srgb(lin * (ys / np.maximum(y, 1e-6))[..., None])
 
 

@@ -60,6 +60,9 @@ class Canvas:
         Thread width in pixels at this size.
     eye : bool
         Also keep the error as the eye sees it (:attr:`eye`, for ``lines="auto"``).
+    eye_target : ndarray of float, shape (size, size), optional
+        The darkness the eye's error is measured against (default: ``target``; the residual's chooser lays
+        threads against the picture sharpened and judges them, as the eye does, against the picture itself).
 
     Attributes
     ----------
@@ -72,7 +75,7 @@ class Canvas:
     eye : EyeError or None
     """
 
-    def __init__(self, target, weights, pin_xy, width_px, *, eye=False):
+    def __init__(self, target, weights, pin_xy, width_px, *, eye=False, eye_target=None):
         self.size = m = target.shape[0]
         self.t = np.asarray(target, dtype=np.float64).ravel()
         self.w = np.asarray(weights, dtype=np.float64).ravel()
@@ -99,7 +102,7 @@ class Canvas:
         self.g = (self.w * (self.t - self.kappa)).astype(np.float32)
         self.eye = None
         if eye:
-            self._eye_grid(target, weights)
+            self._eye_grid(target if eye_target is None else eye_target, weights)
 
     # -- footprints -------------------------------------------------------------------------------------
 

@@ -6,7 +6,12 @@ model (:mod:`stringbot.planner.model.union`: the reference rendering's union of
 sharp threads on a fine canvas of ``f x f`` samples per working pixel, the
 thread about one sample wide): ``D``, the share of each working pixel the
 threads drawn so far cover.  The error is ``E = sum w (t - D)^2`` (``w``: 1
-in the frame, up to 2 on important pixels, 0 outside).
+in the frame, up to 2 on important pixels, 0 outside).  The chooser and the
+refinement see ``t`` sharpened (an unsharp mask, :data:`SHARPEN`): the
+error is per working pixel, while the eye (and the plain SSIM) also sees the
+picture's edges, and a sharpened target puts the threads on them rather
+than evenly beside them.  The eye's error (the stop, half the score) and the
+polish keep ``t`` itself.
 
 *Choosing* (image-space error diffusion).  From the current pin, each
 chord's score is the mean, over points spaced evenly along it (``int(hypot)``
@@ -41,6 +46,7 @@ import numpy as np
 
 from ...errors import BadInput
 from ..model.lines import PinLines
+from ..picture.resample import unsharp
 from ..progress import report
 from . import Outcome
 from .canvas import Canvas, fresh
@@ -48,7 +54,7 @@ from .canvas import Canvas, fresh
 log = logging.getLogger(__name__)
 
 __all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "PATIENCE", "EYE_SHARE", "EYE_FIRST",
-           "LENGTH_POWER"]
+           "LENGTH_POWER", "SHARPEN"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -62,6 +68,12 @@ EYE_FIRST = 40
 #: with ``lines="auto"``, a chord's score is its mean slope times its length to this power (0: the mean,
 #: the gain per length; 1: the sum, its whole gain): longer chords, fewer lines (docs/planner.md)
 LENGTH_POWER = 0.3
+#: the chooser and the refinement lay threads against the darkness sharpened, ``t + amount (t - blur(t))``
+#: clipped to [0, 1] (:func:`~stringbot.planner.picture.resample.unsharp`; this amount, the blur's sigma this
+#: fraction of the working size: 6 px at 401): the threads go to the picture's edges, which the plain SSIM
+#: rewards (at ThreadTone's line counts ThreadTone + 0.062 on average, from + 0.037); the stop, the eye's
+#: half of the score and the polish judge the piece against the picture itself (docs/planner.md, "Quality")
+SHARPEN = (1.5, 0.015)
 #: Points per frame side at which the choice samples each chord: a plan with a line count is judged pixel by
 #: pixel at the working size (every pixel at 401 px); the first draft of a plan to be polished needs half as
 #: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
@@ -205,7 +217,10 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         raise BadInput("residual found nothing to draw: the picture is blank inside the frame; "
                        "expected a picture with some dark parts")
     w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
-    canvas = Canvas(target, w, space.pin_xy, model.width_px(size), eye=lines == "auto")
+    # the threads are chosen against the picture sharpened (see SHARPEN), judged by the eye against itself
+    amount, sigma = SHARPEN
+    sharp = np.where(mask, unsharp(1.0 - pic.gray / 255.0, amount=amount, sigma=sigma * size), 0.0)
+    canvas = Canvas(sharp, w, space.pin_xy, model.width_px(size), eye=lines == "auto", eye_target=target)
     # points about every 1/400 of the frame along each chord (at 801 px every other pixel: the mean
     # residual along a chord needs no more, and this halves the work of large sizes); every 1/200 for
     # a plan to be polished (see CHOOSE_POINTS_POLISHED)

@@ -12,11 +12,14 @@ so each is a small matrix per axis:
   mirrored at the edges.
 
 ``tests/test_resample.py`` checks the result against skimage to 1e-9.
+
+:func:`gaussian_blur` is the same Gaussian at a size kept (``scipy.ndimage.gaussian_filter``'s, reflected at
+the edges), and :func:`unsharp` the unsharp mask the planners lay threads against.
 """
 
 import numpy as np
 
-__all__ = ["resize_square", "resize_taps"]
+__all__ = ["resize_square", "resize_taps", "gaussian_blur", "unsharp"]
 
 
 def _mirror(idx, n):
@@ -26,6 +29,14 @@ def _mirror(idx, n):
     period = 2 * (n - 1)
     idx = np.abs(idx) % period
     return np.where(idx >= n, period - idx, idx)
+
+
+def _gaussian(sigma):
+    """``(offsets, weights)`` of a sampled Gaussian of ``sigma`` pixels, cut at 4 sigma, summing to 1."""
+    r = int(4.0 * sigma + 0.5)
+    off = np.arange(-r, r + 1)
+    k = np.exp(-0.5 * (off / sigma) ** 2)
+    return off, k / k.sum()
 
 
 def resize_taps(n_in, n_out, *, anti_aliasing):
@@ -52,10 +63,7 @@ def resize_taps(n_in, n_out, *, anti_aliasing):
     wts = np.stack([1.0 - fr, fr], axis=1)
     sigma = max(0.0, (scale - 1.0) / 2.0)
     if anti_aliasing and sigma > 0:
-        r = int(4.0 * sigma + 0.5)
-        off = np.arange(-r, r + 1)
-        k = np.exp(-0.5 * (off / sigma) ** 2)
-        k /= k.sum()
+        off, k = _gaussian(sigma)
         # the blurred value at a mirrored position is the blur at the position it mirrors
         pos = (_mirror(pos, n_in)[:, :, None] + off[None, None, :]).reshape(n_out, -1)
         wts = (wts[:, :, None] * k[None, None, :]).reshape(n_out, -1)
@@ -91,3 +99,46 @@ def resize_square(image, size, *, anti_aliasing=True):
     idx, w = resize_taps(a.shape[0], size, anti_aliasing=anti_aliasing)
     out = _along_rows(_along_rows(a, idx, w).T, idx, w).T
     return np.clip(out, a.min(initial=np.inf), a.max(initial=-np.inf))
+
+
+def _reflect(idx, n):
+    """Indices reflected into ``0..n-1`` about the picture's edges (``c b a | a b c d | d c b``)."""
+    idx = np.mod(idx, 2 * n)
+    return np.where(idx >= n, 2 * n - 1 - idx, idx)
+
+
+def gaussian_blur(image, sigma):
+    """A square 2-D array blurred by a Gaussian of ``sigma`` pixels, cut at 4 sigma, reflected at the edges
+    (``scipy.ndimage.gaussian_filter(image, sigma)``, its default ``mode="reflect"``), float64."""
+    a = np.asarray(image, dtype=np.float64)
+    if a.ndim != 2 or a.shape[0] != a.shape[1]:
+        raise ValueError(f"image of shape {a.shape}; expected a square")
+    if sigma <= 0:
+        return a.copy()
+    off, k = _gaussian(float(sigma))
+    n = a.shape[0]
+    idx = _reflect(np.arange(n)[:, None] + off[None, :], n)
+    w = np.broadcast_to(k, idx.shape)
+    return _along_rows(_along_rows(a, idx, w).T, idx, w).T
+
+
+def unsharp(y, *, amount, sigma, lo=0.0, hi=1.0):
+    """The unsharp mask ``y + amount (y - blur(y))`` of a square picture, clipped to ``[lo, hi]``.
+
+    Parameters
+    ----------
+    y : ndarray of float, shape (n, n)
+    amount : float
+        0: ``y`` as it is (clipped).
+    sigma : float
+        The blur's sigma in pixels (:func:`gaussian_blur`).
+    lo, hi : float
+
+    Returns
+    -------
+    ndarray of float64, shape (n, n)
+    """
+    y = np.asarray(y, dtype=np.float64)
+    if amount <= 0:
+        return np.clip(y, lo, hi)
+    return np.clip(y + amount * (y - gaussian_blur(y, sigma)), lo, hi)
