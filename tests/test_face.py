@@ -212,3 +212,12 @@ def test_face_raises_the_face_ssim_as_woven_on_a_small_astronaut(tmp_path, astro
         p = plan_picture(img, pins=80, size=101, lines=600, face=face)
         s[face] = face_scores(p, read_picture(img, size=256, crop=p.crop, gray="luminance").gray, box=box)
     assert s["on"]["ssim_face_blurred"] > s["off"]["ssim_face_blurred"] + 0.02
+
+
+def test_an_auto_plan_with_a_face_polishes_the_frame_after(tmp_path, astronaut):
+    """--face, --lines auto: after the face-weighted polish a second one, led by the frame's error."""
+    img = small(astronaut, tmp_path, 160)
+    p = plan_picture(img, pins=60, size=101, face="on")
+    fp = p.stats["frame_polish"]
+    assert fp["passes"] == 3 and fp["woven_rms"] < fp["woven_rms_before"]  # the frame's error, lower
+    assert "frame_polish" not in plan_picture(img, pins=60, size=101, face="off").stats

@@ -54,7 +54,7 @@ MAX_PASSES = 20
 class Guarded:
     """Two canvases holding the same drawing, polished as one (:func:`polish_plan`, one process): the
     moves are chosen and judged by ``lead``'s error, and a change is kept only where ``guard``'s error
-    does not rise either (``--face``: the frame's error leads, the face-weighted error guards).
+    does not rise either (``--face``: the frame's error leads, the face's own error guards).
 
     Parameters
     ----------

@@ -47,8 +47,8 @@ from .canvas import Canvas, fresh
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "PATIENCE", "EYE_SHARE", "EYE_FIRST",
-           "LENGTH_POWER"]
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "PATIENCE",
+           "EYE_SHARE", "EYE_FIRST", "LENGTH_POWER"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -67,8 +67,8 @@ LENGTH_POWER = 0.3
 #: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
 #: 0.1-0.2 s less, as-woven error within 1 % (docs/planner.md, "Speed").
 CHOOSE_POINTS, CHOOSE_POINTS_POLISHED = 400, 200
-#: ``--face``: passes of inserts and deletes in the polish after the polish, the one the frame's error leads
-#: and the face-weighted error guards (:func:`frame_polish`; docs/planner.md, "Faces")
+#: ``--face``: passes of inserts and deletes in the second polish, the one the frame's error leads and the
+#: face's own error guards (:func:`frame_polish`; docs/planner.md, "Faces")
 FACE_PASSES = 3
 
 
