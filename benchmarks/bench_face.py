@@ -24,7 +24,8 @@ With ``--colors SPEC`` (e.g. ``auto:3``) the plans are colour plans (``stringbot
 its defaults), scored by ``stringbot score``'s colour yardstick (``colour_score``): the luminance
 SSIM inside the face box and over the frame, and the mean CIEDE2000 inside the box and over the frame.
 
-Usage: python benchmarks/bench_face.py [--json] [--variants] [--shapes] [--colors SPEC] [--sheet docs/faces.png] [IMAGE ...]
+Usage: python benchmarks/bench_face.py [--json] [--variants] [--shapes] [--start-pin N] [--colors SPEC] [--sheet docs/faces.png]
+[IMAGE ...]
 """
 
 import argparse
@@ -152,8 +153,9 @@ def sheet(rows, path):
     Image.fromarray(grid).save(path, optimize=True)
 
 
-def run(image, *, variants=False, shapes=False):
-    """Plan ``image`` without and with ``--face`` (and the variants, the other weight maps); their figures."""
+def run(image, *, variants=False, shapes=False, start_pin=None):
+    """Plan ``image`` without and with ``--face`` (and the variants, the other weight maps; from ``start_pin``,
+    None: the planner's own); their figures."""
     from stringbot.planner.build import plan_picture
     from stringbot.planner.picture.face import crop_on_face, face_for_plan
     from stringbot.planner.picture.read import default_crop, fit_crop
@@ -175,7 +177,7 @@ def run(image, *, variants=False, shapes=False):
         spec = kw.pop("shape", None)
         with features(*(FEATURES if name == "features" else (None, None, None))), \
                 (shape(*spec) if spec else contextlib.nullcontext()):
-            p = plan_picture(image, **kw)
+            p = plan_picture(image, start_pin=start_pin, **kw)
         s = measure(p, image, found.to_record()["box"])
         if name in ("off", "on"):
             out["tiles"].append(tiles(p, image))
@@ -215,10 +217,12 @@ def main(argv=None):
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--variants", action="store_true", help="also the face's crop alone and its weights alone")
     ap.add_argument("--shapes", action="store_true", help="also the other face weight maps (SHAPES)")
+    ap.add_argument("--start-pin", type=int, help="every plan from this pin (as plan --start-pin; not with --colors)")
     ap.add_argument("--colors", help="colour plans with these threads (as plan --colors, e.g. auto:3)")
     ap.add_argument("--sheet", type=Path, help="write a contact sheet: luminance | --face off | luminance | --face on")
     a = ap.parse_args(argv)
-    rows = [run_colour(im, a.colors) if a.colors else run(im, variants=a.variants, shapes=a.shapes) for im in a.images]
+    rows = [run_colour(im, a.colors) if a.colors else run(im, variants=a.variants, shapes=a.shapes, start_pin=a.start_pin)
+            for im in a.images]
     if a.sheet:
         sheet(rows, a.sheet)
     for r in rows:

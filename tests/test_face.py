@@ -1,4 +1,4 @@
-"""Faces: the largest frontal face found, the crop centred on it, its features weighed (planner/picture/face.py)."""
+"""Faces: the largest frontal face found, the crop holding it, its features weighed (planner/picture/face.py)."""
 
 import json
 
@@ -69,8 +69,9 @@ def test_windows_are_grouped_by_place_and_size():
     assert groups[0][1:] == pytest.approx((10, 10, 30.5), abs=1)
 
 
-def test_the_crop_is_centred_on_the_face_and_stays_inside(tmp_path, astronaut):
-    # the astronaut at the right of a wide white picture: the default crop is its centre, the face's is hers
+def test_the_crop_holds_the_face_and_stays_inside(tmp_path, astronaut):
+    # the astronaut at the right of a wide white picture: the default crop is its centre, and it is moved
+    # towards her face as far as holds the face box, no further
     wide = Image.new("RGB", (300, 160), "white")
     wide.paste(astronaut.resize((160, 160), Image.Resampling.LANCZOS), (140, 0))
     path = tmp_path / "wide.png"
@@ -79,8 +80,12 @@ def test_the_crop_is_centred_on_the_face_and_stays_inside(tmp_path, astronaut):
     assert face is not None
     crop = crop_on_face(path, face)
     cy, cx = face.centre
-    assert crop["r"] == 80 and crop["cx"] == pytest.approx(cx) and crop["cx"] > 180
-    assert crop["cy"] == 80  # moved down into the picture, not shrunk: the face is near the top
+    corners = np.array([(face.col + dx, face.row + dy) for dx in (0, face.width) for dy in (0, face.height)])
+    reach = np.hypot(*(corners - [crop["cx"], crop["cy"]]).T).max()
+    assert crop["r"] == 80 and 150 < crop["cx"] < cx and reach <= 80 < reach + 2  # moved just enough
+    assert crop["cy"] == 80  # not shrunk, inside the picture
+    inside = Face(row=60, col=140, height=30, width=30, votes=9)  # a face the default crop holds: kept
+    assert face_crop(inside, width=300, height=160) == {"cx": 150.0, "cy": 80.0, "r": 80.0}
     p = plan_picture(path, pins=60, size=101, lines=60, face="on")
     assert p.crop == crop and p.parameters["face"]["box"][1] == pytest.approx(face.col, abs=0.1)
     # a crop the user gives is kept (the face still weighed); --face off does not look
@@ -128,7 +133,7 @@ def test_plan_face_on_a_small_astronaut_then_score(tmp_path, astronaut):
     out = tmp_path / "a.json"
     code, stdout, err = run("plan", img, "-o", out, *SMALL, "--lines", "150", "--face")
     assert code == 0, err
-    assert "face: found at rows" in stdout and "crop is centred on it" in stdout
+    assert "face: found at rows" in stdout and "the crop holds it" in stdout
     p = read_plan(out)
     r, c, h, w = p.parameters["face"]["box"]
     assert r < ASTRONAUT_FACE[0] * 160 / 512 < r + h and c < ASTRONAUT_FACE[1] * 160 / 512 < c + w
@@ -207,3 +212,12 @@ def test_face_raises_the_face_ssim_as_woven_on_a_small_astronaut(tmp_path, astro
         p = plan_picture(img, pins=80, size=101, lines=600, face=face)
         s[face] = face_scores(p, read_picture(img, size=256, crop=p.crop, gray="luminance").gray, box=box)
     assert s["on"]["ssim_face_blurred"] > s["off"]["ssim_face_blurred"] + 0.02
+
+
+def test_an_auto_plan_with_a_face_polishes_the_frame_after(tmp_path, astronaut):
+    """--face, --lines auto: after the face-weighted polish a second one, led by the frame's error."""
+    img = small(astronaut, tmp_path, 160)
+    p = plan_picture(img, pins=60, size=101, face="on")
+    fp = p.stats["frame_polish"]
+    assert fp["passes"] == 3 and fp["woven_rms"] < fp["woven_rms_before"]  # the frame's error, lower
+    assert "frame_polish" not in plan_picture(img, pins=60, size=101, face="off").stats

@@ -231,3 +231,35 @@ def test_each_fine_pixel_falls_in_the_grid_pixel_under_it(m, width):
     cells = canvas._stamp.cells((rows * F + cols).astype(np.int32))
     assert cells.dtype == np.int64
     assert np.array_equal(cells, (rows // f) * m + cols // f)
+
+
+def test_a_guarded_polish_keeps_a_change_only_where_the_guard_error_does_not_rise():
+    """``--face``'s frame polish: the frame's error leads, the face's guards (``Guarded``)."""
+    from stringbot.planner.methods.polish import Guarded
+
+    space = chord_space(48)
+    g = horse_like()
+    mask = frame_mask(M, "circle")
+    t = np.where(mask, 1 - g / 255.0, 0.0)
+    rng = np.random.default_rng(3)
+    seq = [int(p) for p in rng.integers(0, 48, 160)]
+    seq = [p for i, p in enumerate(seq) if i == 0 or p != seq[i - 1]]
+    chords = list(zip(seq[:-1], seq[1:]))
+    face = np.zeros((M, M))
+    face[:, : M // 2] = 1.0  # the guard's weight: the left half, which it wants white (so that they disagree)
+    white = np.zeros((M, M))
+
+    def guard_error(chords):
+        return WovenCanvas(white, face * mask, space.pin_xy, WIDTH).build(chords)
+
+    lead, guard = polished_canvas(t, mask, space, chords), WovenCanvas(white, face * mask, space.pin_xy, WIDTH)
+    e_lead, e_guard = lead.error(), guard.build(chords)
+    out, stats = polish_plan(Guarded(lead, guard), seq, space, budget=60, passes=1)
+    assert lead.error() < e_lead and guard.error() <= e_guard + 1e-9
+    assert stats["rerouted"] + stats["inserted"] + stats["deleted"] > 0
+    after = list(zip(out[:-1], out[1:]))  # both canvases hold the polished plan
+    assert lead.error() == pytest.approx(polished_canvas(t, mask, space, after).error(), rel=1e-9)
+    assert guard.error() == pytest.approx(guard_error(after), rel=1e-9)
+    # unguarded, the same polish raises the guard's error: the guard is what held it
+    free, _ = polish_plan(polished_canvas(t, mask, space, chords), seq, space, budget=60, passes=1)
+    assert guard_error(list(zip(free[:-1], free[1:]))) > e_guard

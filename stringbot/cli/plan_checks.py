@@ -100,5 +100,5 @@ def face_found_line(p, *, centred):
     if p.parameters.get("face"):
         r, c, h, w = p.parameters["face"]["box"]
         click.echo(f"face: found at rows {r:.0f}-{r + h:.0f}, columns {c:.0f}-{c + w:.0f} of the picture; "
-                   f"{'the crop is centred on it, ' if centred else ''}the face weighs three "
+                   f"{'the crop holds it, ' if centred else ''}the face weighs three "
                    "times as much in the planner's error")

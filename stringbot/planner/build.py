@@ -119,7 +119,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
                    epsilon=epsilon, iterations=iterations, greedy_reference_radius=greedy_reference_radius,
                    diameter_mm=diameter_mm, thread_mm=thread_mm, fit=fit, refine=refine, polish=polish,
                    polish_passes=polish_passes)
-    pic, mask, weights, found = read_for_plan(path, knobs, picture=picture, importance=importance, rng=rng, face=face)
+    pic, mask, weights, found, frame_weights = read_for_plan(path, knobs, picture=picture, importance=importance,
+                                                             rng=rng, face=face)
     how = knobs.method
     target = None if knobs.lines == "auto" and how.stops_itself else \
         auto_lines(pic.gray, mask) if knobs.lines == "auto" else int(knobs.lines)
@@ -129,7 +130,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     job = Job(space, pic, mask, weights, "auto" if target is None else target, knobs.start_pin, knobs.model,
               knobs=dict(DEFAULTS, size=knobs.size, **knobs.given, rng=rng, cache=cache, preview=preview),
               reference=functools.partial(_scored_against, path, pic, read=picture is None, given=reference,
-                                          gray=knobs.gray))
+                                          gray=knobs.gray), frame_weights=frame_weights)
     result = outcome(how.runner()(job))
     seq = [int(p) for p in result.sequence]
     chord_list = result.chords if result.chords is not None else list(zip(seq[:-1], seq[1:]))
@@ -168,7 +169,7 @@ def crop_for(path, knobs, *, face=None):
 
 
 def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None, face="off"):
-    """The picture as the method plans it: ``(picture, mask, weights, face)``.
+    """The picture as the method plans it: ``(picture, mask, weights, face, frame_weights)``.
 
     Parameters
     ----------
@@ -195,6 +196,8 @@ def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None, face=
         1 .. 2 by the importance mask, times the face's weights (1 .. 3), None without either.
     face : Face or None
         The face found, in source pixels.
+    frame_weights : ndarray of float32 or None
+        With a face, the weights without the face's (the importance mask's, else all 1); else None.
     """
     how, size = knobs.method, knobs.size
     found = None if picture is not None else face_for_plan(path, face=face)
@@ -206,11 +209,13 @@ def read_for_plan(path, knobs, *, picture=None, importance=None, rng=None, face=
     if importance is not None:
         weights = read_mask(importance, size=size, crop=pic.crop,
                             source_size=(pic.source["width"], pic.source["height"]))
+    frame_weights = None
     if found is not None:  # --face: the face weighs more
+        frame_weights = np.ones((size, size), np.float32) if weights is None else weights
         weights = face_weights(found, crop=pic.crop, size=size, gray=pic.gray, times=weights)
     mask = frame_mask(size, knobs.frame)
     check_not_too_dark(pic.gray, mask)
-    return pic, mask, weights, found
+    return pic, mask, weights, found, frame_weights
 
 
 def _scored_against(path, pic, *, read, given, gray):

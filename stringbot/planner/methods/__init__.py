@@ -104,7 +104,9 @@ class Job:
     ``"auto"`` only for a method that :attr:`~Method.stops_itself`); ``start_pin`` None only for a
     method that :attr:`~Method.picks_start`.  ``knobs`` holds :data:`DEFAULTS` updated with every knob
     as given (None: not given; ``rng``, ``cache``, ``preview`` too); ``reference()`` is the picture as
-    ``stringbot score`` reads it, for a method that compares drawings of its own."""
+    ``stringbot score`` reads it, for a method that compares drawings of its own; ``frame_weights``
+    (``--face`` only; None without a face) the weights without the face's: all 1, or the importance
+    mask's."""
 
     space: object
     picture: object
@@ -115,6 +117,7 @@ class Job:
     model: object
     knobs: dict = field(default_factory=dict)
     reference: object = None
+    frame_weights: object = None
 
 
 @dataclass

@@ -39,7 +39,7 @@ from ..model.lines import PinLines
 log = logging.getLogger(__name__)
 
 __all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "move_passes",
-           "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES", "MAX_PASSES"]
+           "Guarded", "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES", "MAX_PASSES"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
 POLISH_SPACING = 2.0
@@ -49,6 +49,30 @@ BLOCK = 2
 INSERT_CANDIDATES = 3
 #: the most passes of inserts and deletes ``--polish-passes`` takes
 MAX_PASSES = 20
+
+
+class Guarded:
+    """Two canvases holding the same drawing, polished as one (:func:`polish_plan`, one process): the
+    moves are chosen and judged by ``lead``'s error, and a change is kept only where ``guard``'s error
+    does not rise either (``--face``: the frame's error leads, the face's own error guards).
+
+    Parameters
+    ----------
+    lead, guard : WovenCanvas
+        Both with the same chords drawn; kept in step.
+    """
+
+    def __init__(self, lead, guard):
+        self.lead, self.guard = lead, guard
+
+    def __getattr__(self, name):  # everything but apply is the lead's
+        return getattr(self.lead, name)
+
+    def apply(self, chords_out=(), chords_in=()):
+        """The change on both; the lead's change of error, or a rise (so it is undone) where the guard's rose."""
+        d = self.lead.apply(chords_out=chords_out, chords_in=chords_in)
+        g = self.guard.apply(chords_out=chords_out, chords_in=chords_in)
+        return d if g <= 0.0 else abs(d) + g
 
 
 def polish_lines(space, canvas):

@@ -53,8 +53,8 @@ from .canvas import Canvas, fresh
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "PATIENCE", "EYE_SHARE", "EYE_FIRST",
-           "LENGTH_POWER", "SHARPEN"]
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "PATIENCE",
+           "EYE_SHARE", "EYE_FIRST", "LENGTH_POWER", "SHARPEN"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -79,6 +79,9 @@ SHARPEN = (1.5, 0.015)
 #: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
 #: 0.1-0.2 s less, as-woven error within 1 % (docs/planner.md, "Speed").
 CHOOSE_POINTS, CHOOSE_POINTS_POLISHED = 400, 200
+#: ``--face``: passes of inserts and deletes in the second polish, the one the frame's error leads and the
+#: face's own error guards (:func:`frame_polish`; docs/planner.md, "Faces")
+FACE_PASSES = 3
 
 
 def best_start(canvas, space, pin_lines):
@@ -201,13 +204,15 @@ def run(job):
     k = job.knobs
     seq, stats, drawings = _plan(job.space, job.picture, job.mask, job.weights, job.lines, job.model,
                                  start_pin=job.start_pin, refine=k["refine"], polish=k["polish"], preview=k["preview"],
-                                 passes=k.get("polish_passes", 0))
+                                 passes=k.get("polish_passes", 0), frame_weights=job.frame_weights)
     params = {"refine": k["refine"], "polish": k["polish"], "polish_passes": k.get("polish_passes", 0), "thread_px": round(job.model.width_px(k["size"]), 4)}
     return Outcome(seq, params, stats, drawings=drawings)
 
 
-def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None, passes=0):
-    """The residual choice under the thread model, then refinement and polish: ``(seq, stats, drawings)``."""
+def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None, passes=0,
+          frame_weights=None):
+    """The residual choice under the thread model, then refinement and polish: ``(seq, stats, drawings)``;
+    with ``frame_weights`` (``weights`` without the face's, ``--face``) then :func:`frame_polish`."""
     from .polish import polish_plan
     from .refine import refine_sequence
 
@@ -234,7 +239,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
             from .woven_helper import TwinDrawing
 
             # the twin draws the preview of the reroutes only: after passes of inserts and deletes, drawn here
-            drawing = None if preview is None or passes else TwinDrawing(preview, model)
+            drawing = None if preview is None or passes or frame_weights is not None else TwinDrawing(preview, model)
             helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing,
                                  patience=PATIENCE)
     try:
@@ -271,10 +276,31 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
             done = polish_plan(woven, seq, space, budget=polish, passes=passes)
         seq, ps = done
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
+        if frame_weights is not None:
+            t = time.perf_counter()
+            report("polishing the frame")
+            seq, out["frame_polish"] = frame_polish(target, w, np.where(mask, frame_weights, 0.0), space, model, seq,
+                                                    budget=polish)
+            out["frame_polish_seconds"] = round(time.perf_counter() - t, 3)
         return seq, out, drawings
     finally:
         if helper is not None:
             helper.close()
+
+
+def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=FACE_PASSES):
+    """``--face``: after the face-weighted plan, a polish that the frame's error (``frame_w``: the weights
+    without the face's) leads and the face's guards (the error weighed by ``w - frame_w``, the face's
+    extra weight, 0 away from it): a change is kept only where the frame's error drops and the face's
+    does not rise (:class:`~.polish.Guarded`), so the frame wins back some of what weighing the face cost
+    it and the face keeps what it gained.  ``(seq, stats)`` as :func:`~.polish.polish_plan`."""
+    from .polish import Guarded, polish_plan
+
+    chords = list(zip(seq[:-1], seq[1:]))
+    lead, guard = woven_canvas(target, frame_w, space, model), woven_canvas(target, w - frame_w, space, model)
+    lead.build(chords)
+    guard.build(chords)
+    return polish_plan(Guarded(lead, guard), seq, space, budget=budget, passes=passes)
 
 
 def woven_canvas(target, w, space, model):

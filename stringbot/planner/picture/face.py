@@ -1,8 +1,8 @@
-"""Faces: find the largest frontal face, centre the crop on it, weigh it.
+"""Faces: find the largest frontal face, keep it in the crop, weigh it.
 
 A portrait is judged by its face.  ``stringbot plan IMG --face`` (and
-``--face auto``, when a face is found) centres the crop on the largest face
-and raises the weight of the face (its eyes, mouth and outline) in the
+``--face auto``, when a face is found) keeps the largest face in the crop,
+raises the weight of the face (its eyes, mouth and outline) in the
 planner's importance map, so that the threads go where the eye looks first.
 
 Finding the face
@@ -18,10 +18,10 @@ Finding the face
     Of the faces, the largest is kept.
 
 The crop
-    Centred on the face box, with the radius of the default crop (the
-    largest circle the picture holds); moved, not shrunk, where it would
-    reach outside the picture (a crop closer about the face lowered the
-    face's SSIM as woven: docs/planner.md, "Faces").
+    The default crop (the largest circle the picture holds, centred) when
+    the face box lies inside it, else moved towards the face as little as
+    holds it, never shrunk (centring the crop on the face, and a crop closer
+    about it, lowered the face's SSIM as woven: docs/planner.md, "Faces").
 
 The weights
     1 everywhere, raised over the face (:data:`FACE_WEIGHT` over a
@@ -245,8 +245,10 @@ def largest_face(path, *, min_votes=MIN_VOTES):
 
 
 def face_crop(face, *, width, height):
-    """The crop centred on a face: the default crop's radius (the largest circle the picture holds), moved
-    so that its centre is the face box's, or as near as the picture allows.
+    """The crop that holds a face: the default crop (the largest circle the picture holds, centred) when
+    the face box lies inside it, else that circle moved towards the face box's centre as little as holds
+    the box (in steps of a hundredth of the way), or as near to it as the picture allows.  (Centring the
+    crop on the face lowered the face's SSIM as woven and the frame's: docs/planner.md, "Faces".)
 
     Parameters
     ----------
@@ -262,7 +264,16 @@ def face_crop(face, *, width, height):
     """
     r = min(width, height) / 2.0
     cy, cx = face.centre
-    return {"cx": float(np.clip(cx, r, width - r)), "cy": float(np.clip(cy, r, height - r)), "r": float(r)}
+    near = np.array([width / 2.0, height / 2.0])
+    far = np.array([np.clip(cx, r, width - r), np.clip(cy, r, height - r)])
+    corners = np.array([(face.col + dx, face.row + dy) for dx in (0.0, face.width) for dy in (0.0, face.height)])
+    at = far
+    for t in np.linspace(0.0, 1.0, 101):
+        centre = near + t * (far - near)
+        if np.hypot(*(corners - centre).T).max() <= r:
+            at = centre
+            break
+    return {"cx": float(at[0]), "cy": float(at[1]), "r": float(r)}
 
 
 def face_box_pixels(box, *, crop, size):
