@@ -48,8 +48,8 @@ class _Lines(click.ParamType):
 @click.option("--fit", is_flag=True, help="Paint the whole picture, letterboxed on the board, not its centre.")
 @click.option("--face", type=click.Choice(["auto", "on", "off"]), default="off", show_default=True, is_flag=False,
               flag_value="on",
-              help="Centre the crop on the largest face and weigh the face more; --face alone: on (refuses a "
-                   "picture without a face); auto: when a face is found, else as off.")
+              help="Keep the largest face in the crop (moved towards it only as far as needed) and weigh the face "
+                   "more; --face alone: on (refuses a picture without a face); auto: when a face is found, else as off.")
 @click.option("--start-pin", type=int, default=None,
               help="First pin (0 is at the top, numbered clockwise) [default: residual: an end of its best chord; "
                    "fitness: 0; greedy: pins / 4, ThreadTone's].")

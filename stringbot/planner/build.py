@@ -105,7 +105,7 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         (:func:`~stringbot.planner.model.render.draw_woven`, black on white): a
         polish on two cores draws it meanwhile (the plan's ``woven_drawings``).
     face : {"off", "auto", "on"}
-        Centre the crop on the largest face and weigh it (:func:`read_for_plan`).
+        Keep the largest face in the crop and weigh it (:func:`read_for_plan`).
 
     Returns
     -------

@@ -91,7 +91,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     rng : None, int or numpy Generator
         Seeds the pixel sample of ``auto`` colours (None: a fixed seed).
     face : {"off", "auto", "on"}
-        Centre the crop on the largest face (unless ``crop`` is given) and weigh it more, as for a
+        Keep the largest face in the crop (unless ``crop`` is given) and weigh it more, as for a
         one-thread plan (:func:`stringbot.planner.build.read_for_plan`); ``on`` refuses a picture
         without a face.
     sharpen : float
