@@ -6,7 +6,6 @@ traceback, and leave every file already on disk as it was.
 
 import json
 import os
-import re
 import subprocess
 import sys
 
@@ -405,14 +404,3 @@ def test_score_help_names_the_sizes_it_scores_at():
     text = " ".join(out.split())
     assert code == 0
     assert f"CIEDE2000 between the picture and the plan as woven (both at {SCORE_SIZE} px," in text
-
-
-def test_a_library_warning_reads_as_a_stringbot_warning_line(tmp_path):
-    """A log warning (here greedy stopping early on a nearly white picture) is one
-    ``stringbot: warning:`` line, as the command's own warnings, not ``WARNING module.name: ...``."""
-    Image.fromarray(np.full((120, 120), 240, np.uint8)).save(tmp_path / "white.png")
-    code, _, err = run("plan", tmp_path / "white.png", "-o", tmp_path / "w.json", "--method", "greedy",
-                       "--lines", "300", *SMALL)
-    assert code == 0
-    lines = [x for x in err.splitlines() if x.strip()]
-    assert len(lines) == 1 and re.fullmatch(r"stringbot: warning: greedy stopped after \d+ of 300 lines", lines[0])

@@ -40,16 +40,6 @@ def cli(verbose):
     """
     level = logging.WARNING - 10 * min(verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
-    if not verbose:       # a user's warning reads as the command's own lines: "stringbot: warning: ..."
-        for handler in logging.getLogger().handlers:
-            handler.setFormatter(_UserFormatter())
-
-
-class _UserFormatter(logging.Formatter):
-    """``stringbot: warning: MESSAGE`` (``error``, ``critical``): as :func:`fail` and the plan's warnings."""
-
-    def formatMessage(self, record):
-        return f"stringbot: {record.levelname.lower()}: {record.getMessage()}"
 
 
 def fail(message, code=2):
