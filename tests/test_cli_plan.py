@@ -396,3 +396,11 @@ def test_the_recorded_frame_size_reaches_the_makers_commands(tmp_path, picture):
     code, stdout, err = run("pins", out, "-o", tmp_path / "pins.txt")
     assert code == 0, err
     assert "400 mm ring diameter, from the plan" in stdout, stdout
+
+
+def test_score_help_names_the_sizes_it_scores_at():
+    from stringbot.planner.colour.render import SCORE_SIZE
+    code, out, _ = run("score", "--help")
+    text = " ".join(out.split())
+    assert code == 0
+    assert f"CIEDE2000 between the picture and the plan as woven (both at {SCORE_SIZE} px," in text

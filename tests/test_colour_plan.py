@@ -209,6 +209,8 @@ def test_plan_render_score_through_the_cli(tmp_path, picture, capsys):
     assert code == 0, err
     assert "colour: 60 pins" in text and "spool change" in text
     plan = read_plan(out)
+    metres = plan.stats["thread_diameters"] * 500 / 1000.0          # on the default 500 mm frame, as a mono plan
+    assert f"thread {metres:.1f} m," in text
     assert plan.version == 2 and plan.method == "colour" and 3 <= len(plan.colors) <= 9 and len(set(plan.colors)) == 3
     preview = np.asarray(Image.open(tmp_path / "c.png"))
     assert preview.shape == (1001, 1001, 3)

@@ -63,8 +63,15 @@ def test_contract_violations_name_the_field(tmp_path, change, words):
 
 def test_not_json_and_not_a_file(tmp_path):
     (tmp_path / "bad.json").write_text("{nope")
-    with pytest.raises(BadInput, match="is not JSON"):
+    with pytest.raises(BadInput, match=r"is not JSON \(Expecting property name enclosed in double quotes: line 1 "
+                                       r"column 2\)"):
         read_plan(tmp_path / "bad.json")
+    (tmp_path / "other.json").write_text('{"a": 1}')
+    with pytest.raises(BadInput, match="missing field 'format'; expected 'stringbot-plan'"):
+        read_plan(tmp_path / "other.json")
+    (tmp_path / "pic.json").write_bytes(b"\x89PNG\r\n\x1a\n")
+    with pytest.raises(BadInput, match=r"is not a text file \(a picture\?\); expected a plan file"):
+        read_plan(tmp_path / "pic.json")
     with pytest.raises(BadInput, match="is a folder"):
         read_plan(tmp_path)
     with pytest.raises(BadInput, match="does not exist"):

@@ -215,3 +215,26 @@ def test_locate_within_a_servo_links_arrival_tolerance():
     mid = ((b[0] + c[0]) / 2, b[1])                   # inside the pitch turn, the head OUT
     assert locate((mid[0], mid[1] - 0.1), steps, s, 2, machine, tol) == (s, 2)
     assert locate((mid[0], mid[1] - 0.3), steps, s, 2, machine, tol) is None    # 0.3 mm is off the path
+
+
+def test_ctrl_c_just_after_a_step_is_journaled_counts_that_step(tmp_path, monkeypatch):
+    """Ctrl-C landing after a step's ``done`` line is written (in its fsync) but before the winder
+    counted it: the stop line, the stop record and the resume all say that step is done."""
+    from stringbot.winding import journal as journal_mod
+    job, plan, record = make_job(tmp_path, "grbl-ring", None)
+    real_done = journal_mod.Journal.done
+
+    def done(self, step, pin):
+        real_done(self, step, pin)
+        if step == 4:                       # the 5th step's line is on disk
+            raise KeyboardInterrupt
+    monkeypatch.setattr(journal_mod.Journal, "done", done)
+    with pytest.raises(Interrupted, match=f"interrupted at pin {plan.sequence[5]}, step 6 of "
+                                          f"{len(plan.sequence)}: .*; 5 of {len(plan.sequence)} steps done"):
+        wind_plan(job, confirm=None, eyes=eyes_at(job.url))
+    state = read_journal(job.journal_path)
+    assert state.next_step == 5
+    assert (state.last_stop["step"], state.last_stop["pin"], state.last_stop["next_step"]) == (6, plan.sequence[5], 5)
+    monkeypatch.setattr(journal_mod.Journal, "done", real_done)
+    resume_plan(job, confirm=None)
+    check_world(record, plan)

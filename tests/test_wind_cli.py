@@ -58,8 +58,9 @@ def test_machine_failure_exits_1_with_one_line_naming_pin_step_and_resume(tmp_pa
     lines = error_lines(err)
     assert len(lines) == 1 and "Traceback" not in err
     assert "error:20" in lines[0] and "pin " in lines[0] and "step " in lines[0]
-    # a dry run's simulated machine ends with the command: no resume hint that --resume refuses
-    assert "--resume" not in lines[0]
+    # a dry run's simulated machine ends with the command: no resume hint that --resume refuses,
+    # but the line still says what to do
+    assert "--resume" not in lines[0] and "a dry run cannot be resumed: run it again" in lines[0]
 
 
 def test_machine_failure_on_a_port_names_the_resume_command(tmp_path, plan_path, capsys):
@@ -113,7 +114,7 @@ def test_ctrl_c_on_a_dry_run_exits_130_without_a_resume_hint(tmp_path, plan_path
     assert proc.returncode == 130, err
     lines = error_lines(err)
     assert len(lines) == 1 and "Traceback" not in err
-    assert "interrupted at pin" in lines[0] and "--resume" not in lines[0]
+    assert "interrupted at pin" in lines[0] and "--resume" not in lines[0] and "run it again" in lines[0]
 
 
 class FakeDevice:

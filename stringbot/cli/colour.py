@@ -64,9 +64,8 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
     s = p.stats
     runs = {c: sum(1 for x in p.colors if x == c) for c in dict.fromkeys(p.colors)}
     per = ", ".join(f"{_short(c)} {s['colors'][c]['lines']} in {n}" for c, n in runs.items())
-    thread = f"{s['thread_diameters']:.1f} diameters"
-    if mach is not None:
-        thread = f"{s['thread_diameters'] * mach['ring.diameter_mm'] / 1000.0:.1f} m"
+    # in metres on the plan's frame (--machine's ring, --diameter-mm, or 500 mm), as a one-thread plan says
+    thread = f"{s['thread_diameters'] * p.thread_model().diameter_mm / 1000.0:.1f} m"
     click.echo(f"colour: {p.pins} pins, {len(runs)} thread(s) in {len(p.colors)} run(s) (lines in runs: {per}), "
                f"{s['lines']} lines, thread {thread}, {s['spool_changes']} spool change(s), {s['seconds']:.2f} s "
                f"-> {output} (preview {preview})")

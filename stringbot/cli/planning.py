@@ -269,7 +269,7 @@ def score_cmd(plan, image, as_json, colour):
     RMS over the frame, gray levels 0..1, lower is better).
 
     A colour plan (and any plan with --colour) is scored in colour: the mean
-    CIEDE2000 between the picture and the plan as woven (both at 201 px,
+    CIEDE2000 between the picture and the plan as woven (both at 512 px,
     blurred by sigma 2 px; lower is better) and the SSIM of their luminances.
     """
     import json

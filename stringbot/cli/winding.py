@@ -139,8 +139,9 @@ def wind(plan, machine_name, port, record, journal, yes, resume, from_step, head
         raise SpoolChange(f"{exc}; then resume with: {_resume_command(plan, machine_name, port, journal, *extra)}",
                           layer=exc.layer) from None
     except (Interrupted, MachineFailure) as exc:
-        if port is None:
-            raise  # a dry run cannot be resumed (its simulated machine ends with the command)
+        if port is None:         # a dry run cannot be resumed (its simulated machine ends with the command)
+            raise type(exc)(f"{exc}; a dry run cannot be resumed: run it again to wind from step 1 (to rehearse "
+                            "resuming, wind on `stringbot simulate --pty PATH` with --port PATH)") from None
         if not moved(job):
             # nothing moved: a new start finds the machine as this one did
             raise type(exc)(f"{exc}; nothing was wound yet (nothing moved): once that is fixed, run the "

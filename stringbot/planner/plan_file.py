@@ -271,12 +271,15 @@ def read_plan(path):
         raise BadInput(f"{where} does not exist") from None
     except IsADirectoryError:
         raise BadInput(f"{where} is a folder; expected a plan file (JSON)") from None
-    except (UnicodeDecodeError, OSError) as exc:
+    except UnicodeDecodeError:
+        raise BadInput(f"{where} is not a text file (a picture?); expected a plan file (JSON)") from None
+    except OSError as exc:
         raise BadInput(f"{where} cannot be read as text: {exc}; expected a plan file (JSON)") from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise BadInput(f"{where} is not JSON ({exc.msg} at line {exc.lineno}); expected a plan file") from None
+        raise BadInput(f"{where} is not JSON ({exc.msg}: line {exc.lineno} column {exc.colno}); expected a "
+                       "plan file") from None
     return plan_from_json(doc, where=where)
 
 
@@ -284,6 +287,8 @@ def plan_from_json(doc, *, where="plan"):
     """Check a decoded plan document and build a :class:`Plan`."""
     if not isinstance(doc, dict):
         raise BadInput(f"{where}: top level is {type(doc).__name__}; expected a JSON object")
+    if "format" not in doc:
+        raise BadInput(f"{where}: missing field 'format'; expected {FORMAT!r} (is this a stringbot plan?)")
     if doc.get("format") != FORMAT:
         raise BadInput(f"{where}: field 'format' is {doc.get('format')!r}; expected {FORMAT!r}")
     version = _need(doc, "version", int, where, "an integer")

@@ -14,7 +14,7 @@ import math
 import time
 from dataclasses import dataclass
 
-from ..errors import Interrupted, MachineFailure
+from ..errors import BadInput, Interrupted, MachineFailure
 from ..links import LinkState
 from ..motion import move_seconds
 
@@ -286,6 +286,20 @@ class Winder:
                 self._executed(step)
         except Exception:  # the journal write failing here must not hide the stop
             log.exception("could not journal the last executed steps")
+        self._as_journaled()
+
+    def _as_journaled(self):
+        """A Ctrl-C that lands after a step's ``done`` line reached the journal but before
+        :attr:`done` counted it (the fsync is the longest part of a step's bookkeeping) leaves the
+        journal a step ahead: the journal is the truth the stop line, the stop record and
+        ``--resume`` must all tell."""
+        if self.journal is None or self._journal_broken:
+            return
+        from .journal import read_journal
+        try:
+            self.done = max(self.done, read_journal(self.journal.path).next_step)
+        except (BadInput, OSError) as exc:
+            log.warning("could not read the journal back: %s", exc)
 
     def _current(self):
         if self.done < len(self.steps):
