@@ -179,8 +179,8 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     else:
         rgb = np.stack([resize_square(target[..., c], grid) for c in range(3)], axis=-1)
         # the draft orders the colours by their mean alone (the texture there changed the order, not the SSIM)
-        runs = plan_runs(runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER, texture=0.0), lambda: work, k,
-                         spool_changes=spool_changes, thicker=DRAFT_THICKER,
+        draft = runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER, texture=0.0)
+        runs = plan_runs(draft, lambda: work, k, spool_changes=spool_changes, thicker=DRAFT_THICKER,
                          min_run=min_run, first=start_pin)
     layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]
     used = {lay.color for lay in layers}

@@ -193,7 +193,7 @@ class Piece:
         return cells
 
     def error(self):
-        """Sum over pixels of the weighted squared CIELAB difference."""
+        """Sum over pixels of the weighted squared CIELAB difference (and texture, :data:`TEXTURE`)."""
         d = lab(self.u) - self.target_lab
         e = (d * d) @ self.metric + self.texture * (self.y2 - self.y1 * self.y1)
         return float((self.weight * e).sum())
