@@ -99,7 +99,8 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         it is); the threads are picked from the picture as it is.
     texture : float
         The weight of each pixel's texture (its variance of luminance over its samples) in the plan's
-        error (:class:`.model.Piece`; 0: the mean colour alone); the draft orders the colours without it.
+        error (:class:`.model.Piece`; 0: the mean colour alone); the draft orders the colours without it,
+        and on a dark board (luminance under a half) the plan too.
 
     Returns
     -------
@@ -109,7 +110,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     from ..knobs import auto_lines, check_knobs
     from ..model.chords import chord_pixels, chord_space, frame_mask, thread_length
     from ..picture.resample import resize_square
-    from .model import Piece, chord_weights_px, linear_colors, sharpened
+    from .model import _Y, Piece, chord_weights_px, linear_colors, sharpened
     from .runs import Runner, plan_runs
 
     t0 = time.perf_counter()
@@ -170,7 +171,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         raise BadInput(f"texture {texture!r}; expected 0..1000000")
     target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
     grid = draft_size(size)
-    work = runner(size, target, texture=float(texture))
+    # the texture term is measured on light boards; on a dark one it stopped a light thread's moon at night after
+    # 8 lines (tests/test_outputs_ours.py): there the mean colour alone
+    work = runner(size, target, texture=float(texture) if float(np.dot(board, _Y)) >= 0.5 else 0.0)
     start_err = work.piece.error()
     t_setup = time.perf_counter()
     report("colour")
