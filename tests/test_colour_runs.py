@@ -35,6 +35,13 @@ def test_the_draft_is_merged_down_to_the_budget_each_colour_keeping_its_lines():
     assert fit_schedule(runs, 1) == [(0, 11)]
 
 
+def test_the_schedule_does_not_end_with_the_darkest_thread_while_it_has_a_run_before():
+    runs = [(0, [0] * 6), (1, [0] * 4), (0, [0] * 5), (2, [0] * 2), (0, [0] * 3)]     # A5 B3 A4 C1 A2
+    assert fit_schedule(runs, 5, darkest=0) == [(0, 5), (1, 3), (0, 6), (2, 1)]    # A's last two lines to A4
+    assert fit_schedule(runs, 5, darkest=2) == fit_schedule(runs, 5)               # C not last: as it was
+    assert fit_schedule([(0, [0] * 3), (1, [0] * 4)], 5, darkest=1) == [(0, 2), (1, 3)]   # B's only run stays
+
+
 def test_auto_gives_n_threads_or_says_why_fewer(picture, tmp_path, capsys):
     from stringbot.planner.colour.reach import auto_palette
     from stringbot.planner.picture.read import read_picture
@@ -85,10 +92,10 @@ def test_the_last_frame_of_the_animation_is_the_preview(tmp_path, picture, capsy
 
 @pytest.fixture
 def runs_plan(tmp_path, capsys, picture):
-    """A plan the planner made for grbl-ring in which a colour comes back (blue, crimson, black, blue)."""
+    """A plan the planner made for grbl-ring in which a colour comes back (4 runs: crimson twice)."""
     path = tmp_path / "r.json"
     code, out, err = run(["plan", str(picture), "-o", str(path), "--machine", "grbl-ring", "--size", "150",
-                          "--lines", "60", "--colors", "black,crimson,blue", "--spool-changes", "3",
+                          "--lines", "60", "--colors", "black,crimson,blue", "--spool-changes", "4",
                           "--min-run", "10"], capsys)
     assert code == 0, err
     assert "in 4 run(s)" in out and "spool change(s)" in out and "run(s)" in out.splitlines()[2]  # per colour
@@ -126,7 +133,7 @@ def test_a_plan_whose_colour_comes_back_stops_at_each_spool_change_and_resumes_r
         sim.stop()
     got, rec = seen(sim)
     assert got == want and rec["collisions"] == []
-    assert [s["color"] for s in rec["spools"]] == plan.colors                    # blue tied on twice
+    assert [s["color"] for s in rec["spools"]] == plan.colors                    # crimson tied on twice
     records = [json.loads(x) for x in journal.read_text().splitlines()]
     assert [(r["layer"], r["color"], r["step"]) for r in records if r["kind"] == "layer"] == \
         [(k, c, s) for k, (c, s) in enumerate(zip(plan.colors, plan.layer_starts))]

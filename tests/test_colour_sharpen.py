@@ -67,7 +67,7 @@ def test_sharpening_puts_more_of_the_thread_on_a_thin_line(line_picture):
             hits += np.count_nonzero(np.abs(p[:, 1] - 0.5) < 0.02) / 200
         return hits / len(plan.chord_list())
 
-    kw = dict(colors=["#141414"], pins=60, size=48, lines=60, model=THICK, cache=False)
+    kw = dict(colors=["#141414"], pins=60, size=48, lines=60, model=THICK, cache=False, texture=0)  # sharpening alone
     plain = plan_colour(line_picture, sharpen=0, **kw)
     sharp = plan_colour(line_picture, **kw)
     assert plain.parameters["sharpen"] == 0 and sharp.parameters["sharpen"] == 2.0

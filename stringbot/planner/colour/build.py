@@ -21,7 +21,7 @@ from ..progress import report
 from ..model.thread import ThreadModel
 from .palette import WHITE, hex_to_rgb, to_linear
 from .reach import auto_palette, bare_share
-from .model import SHARPEN
+from .model import SHARPEN, TEXTURE
 from .runs import RUN_DEFAULTS
 
 log = logging.getLogger(__name__)
@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 __all__ = ["plan_colour", "auto_colour_lines", "COLOUR_DEFAULTS"]
 
 COLOUR_DEFAULTS = {"spool_changes": RUN_DEFAULTS["spool_changes"], "min_run": RUN_DEFAULTS["min_run"], "size": 256,
-                   "sharpen": SHARPEN[0]}
+                   "sharpen": SHARPEN[0], "texture": TEXTURE}
 #: the draft's fine canvas: samples across a thread (about half a sample: it only orders the colours)
 DRAFT_SAMPLES = 0.5
 #: the draft's thread is this many times as wide, each of its chords standing for as many of the plan's: a
@@ -61,7 +61,7 @@ def auto_colour_lines(gray, mask, background, colors):
 def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=COLOUR_DEFAULTS["size"], crop=None,
                 lines="auto", start_pin=None, model=None, cache=True, spool_changes=COLOUR_DEFAULTS["spool_changes"],
                 min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, face="off",
-                sharpen=COLOUR_DEFAULTS["sharpen"]):
+                sharpen=COLOUR_DEFAULTS["sharpen"], texture=COLOUR_DEFAULTS["texture"]):
     """Plan a colour thread painting.
 
     Parameters
@@ -97,6 +97,10 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     sharpen : float
         The threads are laid against the picture sharpened by this much (:func:`.model.sharpened`; 0: as
         it is); the threads are picked from the picture as it is.
+    texture : float
+        The weight of each pixel's texture (its variance of luminance over its samples) in the plan's
+        error (:class:`.model.Piece`; 0: the mean colour alone); the draft orders the colours without it,
+        and on a dark board (luminance under a half) the plan too.
 
     Returns
     -------
@@ -106,7 +110,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     from ..knobs import auto_lines, check_knobs
     from ..model.chords import chord_pixels, chord_space, frame_mask, thread_length
     from ..picture.resample import resize_square
-    from .model import Piece, chord_weights_px, linear_colors, sharpened
+    from .model import _Y, Piece, chord_weights_px, linear_colors, sharpened
     from .runs import Runner, plan_runs
 
     t0 = time.perf_counter()
@@ -148,7 +152,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     report("chords")
     board, lin = to_linear(hex_to_rgb(background)), linear_colors(colors)
 
-    def runner(grid, rgb, *, samples=1.0, thicker=1.0):
+    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None):
         """A :class:`Runner` on a ``grid``-px working grid (the picture ``rgb`` read at that size)."""
         indptr, indices = chord_pixels(space, grid, cache=cache)
         weights = chord_weights_px(space, grid, model.width_px(grid) * thicker)
@@ -157,14 +161,19 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
             w = w * (np.asarray(weight, dtype=np.float64) if grid == size else
                      resize_square(np.asarray(weight, dtype=np.float64), grid))
         piece = Piece(to_linear(rgb.reshape(-1, 3)), w.ravel(), board, lin, space.pin_xy,
-                      model.width_px(grid) * thicker, nominal=float(np.median(weights)), samples=samples)
+                      model.width_px(grid) * thicker, nominal=float(np.median(weights)), samples=samples,
+                      texture=texture)
         return Runner(space, indptr, indices, weights, piece)
 
     if not (isinstance(sharpen, (int, float)) and 0 <= sharpen <= 10):
         raise BadInput(f"sharpen {sharpen!r}; expected 0..10")
+    if not (isinstance(texture, (int, float)) and 0 <= texture <= 1e6):
+        raise BadInput(f"texture {texture!r}; expected 0..1000000")
     target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
     grid = draft_size(size)
-    work = runner(size, target)
+    # the texture term is measured on light boards; on a dark one it stopped a light thread's moon at night after
+    # 8 lines (tests/test_outputs_ours.py): there the mean colour alone
+    work = runner(size, target, texture=float(texture) if float(np.dot(board, _Y)) >= 0.5 else 0.0)
     start_err = work.piece.error()
     t_setup = time.perf_counter()
     report("colour")
@@ -172,8 +181,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         runs = plan_runs(work, None, k, spool_changes=spool_changes, min_run=min_run, first=start_pin)
     else:
         rgb = np.stack([resize_square(target[..., c], grid) for c in range(3)], axis=-1)
-        runs = plan_runs(runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER), lambda: work, k,
-                         spool_changes=spool_changes, thicker=DRAFT_THICKER,
+        # the draft orders the colours by their mean alone (the texture there changed the order, not the SSIM)
+        draft = runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER, texture=0.0)
+        runs = plan_runs(draft, lambda: work, k, spool_changes=spool_changes, thicker=DRAFT_THICKER,
                          min_run=min_run, first=start_pin)
     layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]
     used = {lay.color for lay in layers}
@@ -189,7 +199,8 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
               "colors_requested": (f"auto:{requested[1]}" + (":" + ",".join(requested[2]) if len(requested) > 2 else "")
                                    if isinstance(requested, tuple) else list(requested)),
               "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
-              "draft_size": draft_size(size), "sharpen": float(sharpen), "face": found and found.to_record(),
+              "draft_size": draft_size(size), "sharpen": float(sharpen),
+              "texture": float(texture), "face": found and found.to_record(),
               "mono_lines_rule": auto_lines(pic.gray, mask)}
     per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
                       "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c

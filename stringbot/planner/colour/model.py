@@ -23,6 +23,15 @@ share times the sum of ``S`` over its pixels: one gather and one sum for the
 ~300 chords from a pin.  (The exact change, not a Taylor expansion: near
 black CIELAB's slope is 8 times that at mid gray, and a Gauss-Newton step
 misjudged a light thread on a dark board; docs/planner.md, "Colour".)
+
+**The texture.**  The eye, and the plain luminance SSIM, also see how the
+samples of a pixel differ: half a pixel of black thread on the board is a
+mid gray on average but a stripe.  So each pixel's error also counts
+:data:`TEXTURE` times the variance of its samples' luminance (linear light),
+kept exactly as threads are laid (the mean luminance and the mean of its
+square over the samples) and judged for a typical thread as the colour is:
+a mid tone is then rather made of a lighter thread covering more of the
+pixel than of a dark one covering less.
 """
 
 import numpy as np
@@ -31,7 +40,7 @@ from ..model.union import UnionStamp, fine_per_pixel, unique
 from ..picture.resample import unsharp
 from .palette import hex_to_rgb, lab, to_linear, to_srgb
 
-__all__ = ["Piece", "chord_weights_px", "linear_colors", "sharpened", "LIGHTNESS", "SHARPEN"]
+__all__ = ["Piece", "chord_weights_px", "linear_colors", "sharpened", "LIGHTNESS", "SHARPEN", "TEXTURE"]
 
 #: the weight of lightness in the error, against 1 for each of a* and b* (docs/planner.md, "Colour")
 LIGHTNESS = 2.0
@@ -39,6 +48,11 @@ LIGHTNESS = 2.0
 #: this amount, sigma in working pixels): chelsea's plain luminance SSIM at Prem-Dharshan's line count 0.313 ->
 #: 0.329 with 8 spool changes (docs/planner.md, "Colour")
 SHARPEN = (2.0, 1.0)
+#: the weight of the thread's texture in the error: each pixel's variance of luminance (linear light) over its
+#: samples, times this, is added to its CIELAB error (0: the mean colour alone).  On the working grid only (the
+#: draft orders the colours without it): the plain luminance SSIM at Prem-Dharshan's line count with 2 spool
+#: changes chelsea 0.333 -> 0.340, coffee 0.335 -> 0.340, the colour error lower (docs/planner.md, "Colour")
+TEXTURE = 3000.0
 #: linear light -> luminance (Rec. 709)
 _Y = np.array([0.2126, 0.7152, 0.0722])
 
@@ -100,12 +114,17 @@ class Piece:
         The weight of lightness in the error (:data:`LIGHTNESS`).
     samples : float
         Samples of the fine canvas across a thread, about (1; the draft: fewer).
+    texture : float, optional
+        The weight of each pixel's variance of luminance over its samples in the error (default
+        :data:`TEXTURE`; 0: none).
     """
 
     def __init__(self, target, weight, board, colors, pin_xy, width_px, *, nominal=0.2, lightness=LIGHTNESS,
-                 samples=1.0):
+                 samples=1.0, texture=None):
+        texture = TEXTURE if texture is None else float(texture)
         self._args = (target, weight, board, colors, pin_xy, width_px)
-        self._kw = dict(nominal=nominal, lightness=lightness, samples=samples)
+        self._kw = dict(nominal=nominal, lightness=lightness, samples=samples, texture=texture)
+        self.texture = texture
         self.m = int(round(np.sqrt(len(target))))
         self.n = self.m * self.m
         self.target_lab = lab(np.asarray(target, dtype=np.float64))
@@ -123,6 +142,10 @@ class Piece:
         self.per_sample = 1.0 / (f * f)
         self.u = np.empty((self.n, 3))
         self.u[:] = self.board
+        # each pixel's mean luminance and mean squared luminance over its samples (the texture's variance)
+        self.lum = self.palette @ _Y
+        self.y1 = np.full(self.n, self.lum[0])
+        self.y2 = np.full(self.n, self.lum[0] ** 2)
         self._mark = np.zeros(self.n, dtype=np.int64)
         # per colour and pixel, the error's change per unit of thread share (weighted)
         self.S = np.zeros((self.K, self.n), dtype=np.float32)
@@ -141,6 +164,12 @@ class Piece:
         pts[1:] = u + self.nominal * (self.colors[:, None, :] - u)
         d = lab(pts.reshape(-1, 3)).reshape(self.K + 1, len(p), 3) - self.target_lab[p]
         e = (d * d) @ self.metric
+        if self.texture:
+            y1, y2 = self.y1[p], self.y2[p]
+            k1 = y1 + self.nominal * (self.lum[1:, None] - y1)
+            k2 = y2 + self.nominal * (self.lum[1:, None] ** 2 - y2)
+            e[0] += self.texture * (y2 - y1 * y1)
+            e[1:] += self.texture * (k2 - k1 * k1)
         self.S[:, p] = (e[1:] - e[0]) * (self.weight[p] / self.nominal)
 
     def lay(self, k, a, b):
@@ -155,11 +184,15 @@ class Piece:
         cells, inv = unique(self.stamp.cells(samples), self._mark)
         kinds = len(self.palette)
         lost = np.bincount(inv * kinds + old, minlength=len(cells) * kinds).reshape(len(cells), kinds)
-        self.u[cells] += (lost * self.per_sample) @ (self.colors[k] - self.palette)   # what each sample changed
+        moved = lost * self.per_sample
+        self.u[cells] += moved @ (self.colors[k] - self.palette)   # what each sample changed
+        self.y1[cells] += moved @ (self.lum[k + 1] - self.lum)
+        self.y2[cells] += moved @ (self.lum[k + 1] ** 2 - self.lum ** 2)
         self.refresh(cells)
         return cells
 
     def error(self):
-        """Sum over pixels of the weighted squared CIELAB difference."""
+        """Sum over pixels of the weighted squared CIELAB difference (and texture, :data:`TEXTURE`)."""
         d = lab(self.u) - self.target_lab
-        return float((self.weight * ((d * d) @ self.metric)).sum())
+        e = (d * d) @ self.metric + self.texture * (self.y2 - self.y1 * self.y1)
+        return float((self.weight * e).sum())

@@ -14,7 +14,8 @@ the plan file); between two runs the maker changes the spool.  At most
    budget, the shortest first: a run goes, its lines to the nearest run of
    its colour, so that each colour keeps its share of the lines and roughly
    its place in the order; the last run of a colour goes only when there are
-   more colours than runs.
+   more colours than runs.  The schedule does not end with the thread of most
+   contrast with the board (its last run joins its run before, if it has one).
 3. *The plan* (:func:`follow`, on the working grid): each run of the schedule
    in turn, for its share of the lines.  A run starts at an end of the chord
    of its colour that lowers the error most, anywhere on the frame, and goes
@@ -189,11 +190,15 @@ def free_runs(runner, lines, *, min_run=RUN_DEFAULTS["min_run"]):
     return runs
 
 
-def fit_schedule(runs, most):
+def fit_schedule(runs, most, *, darkest=None):
     """The draft's runs ``[(colour, pins)]`` merged down to at most ``most`` runs: ``[(colour, lines)]``.
 
     The shortest run goes first, its lines to the nearest run of its colour; a
-    colour's last run goes only while there are more colours than runs.
+    colour's last run goes only while there are more colours than runs.  Then
+    the schedule does not end with colour ``darkest`` (the thread of most
+    contrast with the board) while it has a run before: its last run's lines
+    go to that run (the last run lies on top of all; a dark one there is the
+    plan's most visible texture).
     """
     sched = _tidy([[k, len(seq) - 1] for k, seq in runs])
     while len(sched) > most:
@@ -205,6 +210,10 @@ def fit_schedule(runs, most):
         if same:
             sched[min(same, key=lambda j: (abs(j - i), j))][1] += n
         del sched[i]
+        sched = _tidy(sched)
+    while sched and sched[-1][0] == darkest and sum(k == darkest for k, _ in sched) > 1:
+        k, n = sched.pop()
+        sched[max(j for j in range(len(sched)) if sched[j][0] == k)][1] += n
         sched = _tidy(sched)
     return [(k, n) for k, n in sched]
 
@@ -274,7 +283,8 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
     runs = free_runs(draft, short, min_run=max(1, min(int(round(min_run / thicker)), short // (2 * draft.piece.K))))
     if final is None and first is None and len(runs) <= spool_changes + 1:
         return runs
-    schedule = fit_schedule(runs, spool_changes + 1)
+    lum = draft.piece.lum                   # the board's luminance, then each thread's
+    schedule = fit_schedule(runs, spool_changes + 1, darkest=int(np.argmax(np.abs(lum[1:] - lum[0]))))
     total = sum(n for _, n in schedule)
     if total:
         schedule = [(k, max(1, int(round(n * lines / total)))) for k, n in schedule]
