@@ -91,6 +91,23 @@ def test_a_sheet_winds_is_photographed_fitted_and_planned_with(tmp_path, small):
     code, out2, err = run("calibrate", "fit", tmp_path / "photo.png", "--machine", small, "-o", tmp_path / "m2.toml")
     assert code == 0, err
     assert load_machine(tmp_path / "m2.toml").values == mine.values
+    # an existing machine file other than --machine's own is not rewritten from --machine's keys (the user's
+    # edits kept) unless --force; --machine's own file is calibrated in place, its edits kept
+    (tmp_path / "mine.toml").write_text(text + "# my own note\n")
+    refused(*run("calibrate", "fit", tmp_path / "photo.png", "--machine", small, "-o", tmp_path / "mine.toml"),
+            "exists and is not --machine's file", f"--machine {tmp_path / 'mine.toml'}", "--force")
+    assert (tmp_path / "mine.toml").read_text() == text + "# my own note\n"
+    code, out, err = run("calibrate", "fit", tmp_path / "photo.png", "--machine", tmp_path / "mine.toml", "-o",
+                         tmp_path / "mine.toml")
+    assert code == 0, err
+    assert "# my own note" in (tmp_path / "mine.toml").read_text()
+    assert load_machine(tmp_path / "mine.toml").values == mine.values
+    (tmp_path / "m2.toml").write_text(text + "# my own note\n")
+    code, out, err = run("calibrate", "fit", tmp_path / "photo.png", "--machine", small, "-o", tmp_path / "m2.toml",
+                         "--force")
+    assert code == 0, err
+    assert "# my own note" not in (tmp_path / "m2.toml").read_text()
+    assert load_machine(tmp_path / "m2.toml").values == mine.values
 
     code, out, err = run("machines", "show", tmp_path / "mine.toml")
     assert code == 0, err
@@ -150,14 +167,20 @@ def test_bad_inputs_are_one_line_and_change_nothing(tmp_path, small):
     keep = tmp_path / "keep.toml"
     keep.write_text("[tool.mine]\nkeep = true\n")
     (tmp_path / "notes.json").write_text('{"mine": 1}\n')
+    other = tmp_path / "other.toml"          # a machine file of the user's own, not --machine's
+    other.write_text(small.read_text().replace('name = "small-ring"', 'name = "other-ring"'))
+    other_text = other.read_text()
     cases += [
         (("calibrate", "fit", picture, "--machine", small, "-o", keep),
          ("exists and is not a machine file; not replacing it",)),
+        (("calibrate", "fit", picture, "--machine", small, "-o", other),
+         (f"machine file {str(other)!r} exists and is not --machine's file", "give another -o, or --force")),
         (("calibrate", "sheet", "--machine", small, "-o", tmp_path / "notes.json"),
          ("exists and is a JSON file stringbot did not write",)),
     ]
     for args, needles in cases:
         refused(*run(*args), *needles)
+    assert other.read_text() == other_text
     assert keep.read_text() == "[tool.mine]\nkeep = true\n" and (tmp_path / "notes.json").read_text() == '{"mine": 1}\n'
     assert not mine.exists() and not (tmp_path / "s.json").exists() and not (tmp_path / "mine.txt").exists()
     few = tmp_path / "few.toml"

@@ -141,6 +141,10 @@ def test_plan_face_on_a_small_astronaut_then_score(tmp_path, astronaut):
     assert code == 0, err
     line = next(ln for ln in stdout.splitlines() if ln.startswith("face"))
     assert "inside the face box" in line and "over the frame" in line
+    # the face line's frame SSIM and the SSIM line's are told apart: their size, drawing and area said
+    ssim = next(ln for ln in stdout.splitlines() if ln.startswith("SSIM"))
+    assert "the whole 201 px square" in ssim and "as woven at 512 px" in line and "over the frame only" in line
+    assert "blurred sigma 2 px" in line and "the SSIM line: 1-px chords, the whole 201 px square" in line
     code, stdout, err = run("score", out, "--json")
     f = json.loads(stdout)["face"]
     assert 0 < f["ssim_face_blurred"] <= 1 and 0 < f["ssim_frame_blurred"] <= 1 and f["box"] == [r, c, h, w]
@@ -182,6 +186,8 @@ def test_a_colour_plan_with_face_records_it_weighs_it_and_scores_it(tmp_path, as
     assert code == 0, err
     line = next(ln for ln in stdout.splitlines() if ln.startswith("face"))
     assert "inside the face box" in line and "colour" in line
+    ssim = next(ln for ln in stdout.splitlines() if ln.startswith("SSIM"))
+    assert "the whole 512 px square" in ssim and "over the frame only (the SSIM line: the whole square)" in line
     f_on = json.loads(run("score", on, "--json")[1])["face"]
     assert f_on["box"] == box
     # the same face box scored on the plan made without --face: the face is nearer the picture with it

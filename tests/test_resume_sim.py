@@ -238,3 +238,32 @@ def test_ctrl_c_just_after_a_step_is_journaled_counts_that_step(tmp_path, monkey
     monkeypatch.setattr(journal_mod.Journal, "done", real_done)
     resume_plan(job, confirm=None)
     check_world(record, plan)
+
+
+@pytest.mark.parametrize("after", ["wrap", "head-out"])
+def test_ctrl_c_in_a_steps_last_move_says_its_pin_is_wrapped(tmp_path, monkeypatch, after):
+    """Ctrl-C landing once a step's pin is wrapped (its last move, the head back IN, left): the stop line
+    says the pin is wrapped already, the head still out, and the step not counted done; earlier in the
+    step it says nothing of the kind.  The resume winds the plan exactly either way."""
+    from stringbot.winding.loop import Winder
+    job, plan, record = make_job(tmp_path, "grbl-ring", None)
+    real_moved = Winder._moved
+
+    def moved(self, step, move):
+        real_moved(self, step, move)
+        if step.index == 4 and move == len(step.moves) - (2 if after == "wrap" else 3):
+            raise KeyboardInterrupt
+    monkeypatch.setattr(Winder, "_moved", moved)
+    n, pin = len(plan.sequence), plan.sequence[4]
+    with pytest.raises(Interrupted) as exc:
+        wind_plan(job, confirm=None, eyes=eyes_at(job.url))
+    line = str(exc.value)
+    assert line.startswith(f"interrupted at pin {pin}, step 5 of {n}") and f"; 4 of {n} steps done" in line
+    said = f"(pin {pin} is wrapped already, the head still out: step 5 lacks only the head's move back in"
+    assert (said in line) == (after == "wrap"), line
+    stop = read_journal(job.journal_path).last_stop
+    moves = len(job.steps[4].moves)
+    assert stop["at"]["step_index"] == 4 and stop["at"]["move"] == moves - (1 if after == "wrap" else 2)
+    monkeypatch.setattr(Winder, "_moved", real_moved)
+    resume_plan(job, confirm=None)
+    check_world(record, plan)

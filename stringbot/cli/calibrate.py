@@ -73,8 +73,11 @@ def sheet_cmd(machine, output, template, paper, force):
 @click.option("--sheet", "sheet_path", type=click.Path(path_type=str), default=None,
               help="The sheet's plan from `calibrate sheet` [default: the machine's sheet, designed again].")
 @click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str),
-              help="Machine file to write (.toml): the machine's, with the calibrated [thread] keys.")
-def fit_cmd(photo, machine, sheet_path, output):
+              help="Machine file to write (.toml): the machine's, with the calibrated [thread] keys; an existing "
+                   "one only if it is --machine's own file (calibrated in place) or with --force.")
+@click.option("--force", is_flag=True,
+              help="Replace an existing machine file that is not --machine's own (its keys and edits are lost).")
+def fit_cmd(photo, machine, sheet_path, output, force):
     """Fit the thread's effective width and the board's and thread's grays from a PHOTO of the wound sheet."""
     from firmware_protocol.machine import MachineFileError, bundled_dir, load_machine
 
@@ -92,13 +95,17 @@ def fit_cmd(photo, machine, sheet_path, output):
     if os.path.realpath(os.path.dirname(os.path.abspath(output))) == os.path.realpath(bundled_dir()):
         raise BadInput(f"-o {output!r} is among the bundled machine files; expected a file of your own "
                        "(e.g. -o mine.toml)")
+    m = load_machine(machine)
     if os.path.isfile(output) and os.path.getsize(output):
         try:
-            load_machine(output)        # a machine file (the machine's own, say) may be replaced; nothing else
+            load_machine(output)        # a machine file may be replaced: --machine's own, or with --force
         except MachineFileError:
             raise BadInput(f"machine file path {output!r} exists and is not a machine file; not replacing it: "
                            "give another -o (or remove that file)") from None
-    m = load_machine(machine)
+        if not force and not (m.path and os.path.samefile(output, m.path)):
+            raise BadInput(f"machine file {output!r} exists and is not --machine's file ({m.path}); not replacing "
+                           f"it with {m.name}'s keys (its own and its edits would be lost): calibrate it in place "
+                           f"with --machine {output}, give another -o, or --force to replace it")
     ring = dict(pins=m.pins, diameter_mm=m["ring.diameter_mm"], pin_diameter_mm=m["ring.pin_diameter_mm"])
     if sheet_path:
         plan = read_plan(sheet_path)

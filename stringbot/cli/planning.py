@@ -276,7 +276,7 @@ def score_cmd(plan, image, as_json, colour):
     import os
 
     from ..planner.plan_file import read_plan
-    from ..planner.model.scoring import BLUR_SIGMA
+    from ..planner.model.scoring import BLUR_SIGMA, SCORE_SIZE, WOVEN_SIZE
 
     p = read_plan(plan)
     if image is None:
@@ -308,14 +308,16 @@ def score_cmd(plan, image, as_json, colour):
         f"{p.parameters.get('gray', 'decolor')} {', '.join(f'{x:.3f}' for x in w)}"
     click.echo(f"{'plan':<10} {plan}\n{'image':<10} {image}\n{'method':<10} "
                f"{p.method}{'' if p.connected else ' (disconnected)'}\n{'lines':<10} {r['lines']}\n"
-               f"{'SSIM':<10} {r['ssim']:.4f}   (Gaussian 11x11 window; scikit-image default 7x7: "
-               f"{r['ssim_uniform']:.4f})\n"
-               f"{'blurred':<10} {r['ssim_blurred']:.4f}   (7x7: {r['ssim_uniform_blurred']:.4f})\n"
-               f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error, 0..1, lower is better)\n"
+               f"{'SSIM':<10} {r['ssim']:.4f}   (1-px chords, the whole {SCORE_SIZE} px square, Gaussian 11x11 window; "
+               f"scikit-image default 7x7: {r['ssim_uniform']:.4f})\n"
+               f"{'blurred':<10} {r['ssim_blurred']:.4f}   (the same at {SCORE_SIZE} px, both blurred sigma "
+               f"{BLUR_SIGMA:g} px; 7x7: {r['ssim_uniform_blurred']:.4f})\n"
+               f"{'woven':<10} {r['woven_error']:.4f}   (as-woven RMS error at {WOVEN_SIZE} px, 0..1, lower is "
+               "better)\n"
                f"{'own gray':<10} SSIM {own['ssim']:.4f} / blurred {own['ssim_blurred']:.4f}, 7x7 "
                f"{own['ssim_uniform']:.4f} / {own['ssim_uniform_blurred']:.4f}, woven {own['woven_error']:.4f}"
                f"   (against the gray the plan was made against: {how})\n"
-               f"{_face_line(r)}"
+               f"{_face_line(r, other=f' (the SSIM line: 1-px chords, the whole {SCORE_SIZE} px square)')}"
                "The figures above the last line compare the plan with the picture's luminance (0.2125 R + "
                "0.7154 G + 0.0721 B, as skimage's rgb2gray), for 'woven' the plan drawn as it will hang. "
                "SSIM compares the drawing with the picture, both 201 px (the paper's section 4.1): 1 is "
@@ -323,15 +325,19 @@ def score_cmd(plan, image, as_json, colour):
                "a blur (sigma 2 px), as the eye sees the painting from afar.")
 
 
-def _face_line(r):
-    """The score's line for a plan made with --face: SSIM as woven inside the face box and over the frame."""
+def _face_line(r, *, other=""):
+    """The score's line for a plan made with --face: SSIM as woven inside the face box and over the frame,
+    its size and blur said (``other``: what tells its frame figure from the ``SSIM`` line's)."""
     if "face" not in r:
         return ""
+    from ..planner.model.scoring import WOVEN_SIGMA, WOVEN_SIZE
+
     f = r["face"]
     y, x, h, w = f["box"]
-    return (f"{'face':<10} SSIM {f['ssim_face']:.4f} / blurred {f['ssim_face_blurred']:.4f} inside the face box "
-            f"(rows {y:.0f}-{y + h:.0f}, columns {x:.0f}-{x + w:.0f}); over the frame {f['ssim_frame']:.4f} / "
-            f"{f['ssim_frame_blurred']:.4f}   (as woven at 512 px against the luminance)\n")
+    return (f"{'face':<10} SSIM as woven at {WOVEN_SIZE} px (Gaussian 11x11 window), plain / blurred sigma "
+            f"{WOVEN_SIGMA:g} px: {f['ssim_face']:.4f} / {f['ssim_face_blurred']:.4f} inside the face box "
+            f"(rows {y:.0f}-{y + h:.0f}, columns {x:.0f}-{x + w:.0f}); {f['ssim_frame']:.4f} / "
+            f"{f['ssim_frame_blurred']:.4f} over the frame only{other}\n")
 
 
 def _score_colour(p, plan, image, as_json):
@@ -352,6 +358,7 @@ def _score_colour(p, plan, image, as_json):
                f"{'threads':<10} {', '.join(p.colors)} on {p.background}\n{'lines':<10} {r['lines']}\n"
                f"{'colour':<10} {r['delta_e']:.2f}   (mean CIEDE2000 as woven, both blurred sigma 2 px at 512 px; "
                "lower is better)\n"
-               f"{'SSIM':<10} {r['ssim']:.4f}   (luminance, 512 px; blurred: {r['ssim_blurred']:.4f})")
+               f"{'SSIM':<10} {r['ssim']:.4f}   (luminance as woven, the whole 512 px square, Gaussian 11x11 window; "
+               f"blurred sigma 2 px: {r['ssim_blurred']:.4f})")
     if "face" in r:
-        click.echo(_face_line(r).rstrip("\n") + f"; colour {r['face']['delta_e_face']:.2f} inside the face box")
+        click.echo(_face_line(r, other=" (the SSIM line: the whole square)").rstrip("\n") + f"; colour {r['face']['delta_e_face']:.2f} inside the face box")

@@ -318,10 +318,22 @@ class Winder:
             log.warning("feed hold failed: %s", exc)
         self._catch_up()
         step, pin = self._current()
-        self._stop_record("interrupted", "interrupted by the operator (Ctrl-C)", status)
+        point = self._stop_record("interrupted", "interrupted by the operator (Ctrl-C)", status)
         where = f"pin {pin}, step {step} of {len(self.steps)}" if step else "the end"
-        raise Interrupted(f"interrupted at {where}: the machine is stopped; "
+        raise Interrupted(f"interrupted at {where}{self._hooked_already(point)}: the machine is stopped; "
                           f"{self.done} of {len(self.steps)} steps done") from None
+
+    def _hooked_already(self, point):
+        """What the stop line adds when the stop (the link's ``point``, as journaled) came after the
+        current step's pin was wrapped: its last move (the head back IN) is all that is left of it."""
+        if not point or point["step_index"] != self.done or self.done >= len(self.steps):
+            return ""
+        st = self.steps[self.done]
+        if point["move"] < len(st.moves) - 1:
+            return ""
+        left = "the head still out: step {} lacks only the head's move back in" if point["move"] == len(st.moves) - 1 \
+            else "the head back in: step {} lacks only its end (its dwell, its sync)"
+        return f" (pin {st.pin} is wrapped already, {left.format(st.index + 1)}, so it is not counted done)"
 
     def _failed(self, exc):
         self.state = WindState.FAILED
@@ -332,8 +344,9 @@ class Winder:
         self._stop_record("failed", str(exc), None)
 
     def _stop_record(self, reason, message, status, **extra):
+        """Journal the stop; returns the link's stop point (``{"step_index", "move"}``, None unknown)."""
         if self.journal is None:
-            return
+            return None
         step, pin = self._current()
         pos = None
         point = None
@@ -355,6 +368,7 @@ class Winder:
                                  "position": list(pos) if pos else None, **extra})
         except OSError as exc:
             log.warning("could not write the journal's stop record: %s", exc)
+        return point
 
 
 def _firmware_name(link):
