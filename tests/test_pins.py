@@ -74,6 +74,12 @@ def test_dash_writes_to_standard_output(tmp_path, plan_file):
     assert "250 steps" in err and not list(tmp_path.glob("-*"))
 
 
+def test_without_o_the_list_goes_to_standard_output(tmp_path, plan_file):
+    code, stdout, err = run("pins", plan_file)
+    assert code == 0, err
+    assert stdout.startswith("stringbot pin list") and "250 steps" in err and "Missing option" not in err
+
+
 def test_a_square_frame_counts_from_the_top_left_corner(tmp_path):
     pins = 40
     seq = [0, 5, 10, 3, 20, 39, 1]

@@ -117,10 +117,11 @@ def template_cmd(machine, pins, diameter_mm, pin_diameter_mm, output, paper):
 Examples:
   stringbot pins camera.json -o camera-pins.txt --machine grbl-ring
   stringbot pins camera.json -o camera-pins.csv --diameter-mm 500
-  stringbot pins camera.json -o - | less
+  stringbot pins camera.json | less
 """)
 @click.argument("plan", type=click.Path(dir_okay=True, path_type=str))
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False, allow_dash=True, path_type=str),
+@click.option("-o", "--output", "output", default="-", show_default=True,
+              type=click.Path(dir_okay=False, allow_dash=True, path_type=str),
               help="Pin list to write: .txt (pages of 100 steps), .csv, or - for standard output (text).")
 @frame_size_options("the thread length in metres")
 def pins_cmd(plan, output, diameter_mm, machine, force):
