@@ -35,3 +35,13 @@ def test_status_prefers_the_real_winding_over_a_dry_run(tmp_path):
     chosen = run("wind", str(plan), "--machine", "grbl-ring", "--status",
                  "--journal", str(tmp_path / "p.json.dry-run.journal"))
     assert "dry-run" in chosen.stdout.splitlines()[0]
+
+
+def test_status_of_a_plan_never_wound_says_so(tmp_path):
+    plan = tmp_path / "p.json"
+    write_plan(small_plan(n=6), plan)
+    none = run("wind", str(plan), "--machine", "grbl-ring", "--status")
+    assert none.returncode == 2
+    lines = none.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no winding of this plan to report" in lines[0] and "resume" not in lines[0]
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["p.json"]   # a status query writes nothing

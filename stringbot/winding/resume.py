@@ -30,6 +30,7 @@ the winding continues with the interrupted move.
 import datetime
 import logging
 import math
+from pathlib import Path
 
 from ..errors import BadInput, MachineFailure
 from ..links import open_link
@@ -52,6 +53,9 @@ def _fmt_time(t):
 
 def status_lines(job):
     """What ``--status`` prints: steps done, when, the last error."""
+    if not Path(job.journal_path).exists():
+        raise BadInput(f"no winding of this plan to report: journal {str(job.journal_path)!r} does not exist "
+                       "(a winding writes it when it starts; give --journal for one kept elsewhere)")
     state = read_journal(job.journal_path)
     job.header_check(state)
     h = state.header
