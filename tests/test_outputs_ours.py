@@ -228,3 +228,15 @@ def test_a_crop_keeping_less_than_half_the_picture_names_fit(tmp_path):
     code, _, err = run("plan", "strip.png", "-o", "c.json", *QUICK, "--colors", "black", cwd=tmp_path)
     assert code == 0, err
     assert "(1 %)" in err and "--crop" in err and "--fit" not in err            # a colour plan has no --fit
+
+
+def test_a_library_warning_reads_as_one_line_of_the_command(tmp_path, picture):
+    """A planner's log warning is one plain line (``warning: ...``); with -v it says where it came from."""
+    args = ("plan", picture, "-o", "g.json", "--method", "greedy", "--pins", "24", "--lines", "3000",
+            "--size", "101")
+    code, _, err = run(*args, cwd=tmp_path)
+    assert code == 0, err
+    warn = [x for x in err.splitlines() if "greedy stopped after" in x]
+    assert len(warn) == 1 and warn[0].startswith("warning: greedy stopped after") and "stringbot.planner" not in err
+    code, _, err = run("-v", *args, cwd=tmp_path)
+    assert code == 0 and "WARNING stringbot.planner" in err, err

@@ -39,7 +39,21 @@ def cli(verbose):
     Each command has its own --help with its options and examples.
     """
     level = logging.WARNING - 10 * min(verbose, 2)
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    root = logging.getLogger()
+    if not root.handlers:  # (a host that set up logging, e.g. a test runner, keeps its own)
+        handler = logging.StreamHandler(sys.stderr)
+        # a user sees a library's warning as one line of the command; -v shows where it came from
+        handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s") if verbose
+                             else _UserFormatter())
+        root.addHandler(handler)
+        root.setLevel(level)
+
+
+class _UserFormatter(logging.Formatter):
+    """``warning: MESSAGE`` (the level in lower case, no logger name): a log line as a command's line."""
+
+    def format(self, record):
+        return f"{record.levelname.lower()}: {record.getMessage()}"
 
 
 def fail(message, code=2):
