@@ -143,13 +143,14 @@ def pin_list(plan, *, plan_name="plan", size_mm=None, size_from="", thread_m=Non
             each.append(f"{k + 1} {name}: steps {a + 1}-{b}, tie on at pin {tie}{metres}")
         colours = list(dict.fromkeys(plan.colors))
         runs = "" if len(colours) == len(layers) else f" runs of {len(colours)} colours (a colour comes back)"
-        header.append(("threads", f"{len(layers)}{runs}, wound in this order (later ones lie on top): "
+        bare = "; each run's metres without the turns round the pins" if size_mm else ""
+        header.append(("threads", f"{len(layers)}{runs}, wound in this order (later ones lie on top{bare}): "
                                   + "; ".join(each)))
         if runs and size_mm:     # what each spool must hold
             spool = {c: sum(thread_metres(plan, size_mm, lay.sequence) for lay in plan.layers if lay.color == c)
                      for c in colours}
             header.append(("colours", "; ".join(f"{describe_color(c)} about {m:.1f} m in {plan.colors.count(c)} "
-                                                "run(s)" for c, m in spool.items())))
+                                                "run(s)" for c, m in spool.items()) + " (without the turns)"))
     header += [
               ("wrap", "cw: round the pin clockwise, ccw: counter-clockwise (seen from the front), "
                        "either: both alike; always round the outside of the pin")]
