@@ -112,6 +112,10 @@ def test_a_plan_whose_colour_comes_back_stops_at_each_spool_change_and_resumes_r
     for k, lay in enumerate(plan.layers):          # the pin list: thread by thread, run by run
         assert f"thread {k + 1} of 4: " in text and f"{lay.color}) on at pin {lay.sequence[0]}" in text
     assert "4 runs of 3 colours" in text
+    head = dict(ln.split(":", 1) for ln in text.split("\n\n")[0].splitlines()[1:])
+    # (a plan for a machine) the total with the turns round the pins, the runs' and colours' without them
+    assert "m for a 500 mm ring" in head["thread"] and "with the turns" in head["thread"]
+    assert "without the turns" in head["threads"] and "without the turns" in head["colours"]
     journal = tmp_path / "r.journal"
     sim = Simulator(tmp_path, "grbl-ring")
     want = [(pin, lay.color) for lay in plan.layers for pin in lay.sequence]
