@@ -296,3 +296,14 @@ def test_animate_draws_each_layer_in_its_colour_a_later_one_on_top(tmp_path, cap
     assert tuple(frames[2][250, 500]) == red
     assert tuple(frames[2][100, 900]) == (255, 255, 255)     # the board
 
+
+
+def test_the_plan_records_the_texture_weight_it_used(picture):
+    """The texture term is for light boards: on a dark one the plan uses none, and says so."""
+    from stringbot.planner.colour.model import TEXTURE
+
+    light = plan_colour(picture, colors=["#141414", "#c8102e"], pins=40, size=48, lines=60, cache=False)
+    dark = plan_colour(picture, colors=["#ffffff", "#c8102e"], background="#000000", pins=40, size=48, lines=60,
+                       cache=False)
+    assert light.parameters["texture"] == TEXTURE
+    assert dark.parameters["texture"] == 0.0

@@ -361,4 +361,5 @@ def _score_colour(p, plan, image, as_json):
                f"{'SSIM':<10} {r['ssim']:.4f}   (luminance as woven, the whole 512 px square, Gaussian 11x11 window; "
                f"blurred sigma 2 px: {r['ssim_blurred']:.4f})")
     if "face" in r:
-        click.echo(_face_line(r, other=" (the SSIM line: the whole square)").rstrip("\n") + f"; colour {r['face']['delta_e_face']:.2f} inside the face box")
+        click.echo(_face_line(r, other=" (the SSIM line: the whole square)").rstrip("\n")
+                   + f"; colour {r['face']['delta_e_face']:.2f} inside the face box")

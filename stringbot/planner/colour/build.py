@@ -110,7 +110,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     from ..knobs import auto_lines, check_knobs
     from ..model.chords import chord_pixels, chord_space, frame_mask, thread_length
     from ..picture.resample import resize_square
-    from .model import _Y, Piece, chord_weights_px, linear_colors, sharpened
+    from .model import Piece, chord_weights_px, linear_colors, luminance, sharpened
     from .runs import Runner, plan_runs
 
     t0 = time.perf_counter()
@@ -172,8 +172,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
     grid = draft_size(size)
     # the texture term is measured on light boards; on a dark one it stopped a light thread's moon at night after
-    # 8 lines (tests/test_outputs_ours.py): there the mean colour alone
-    work = runner(size, target, texture=float(texture) if float(np.dot(board, _Y)) >= 0.5 else 0.0)
+    # 8 lines (tests/test_outputs_ours.py): there the mean colour alone (and the plan records the weight used)
+    texture = float(texture) if float(luminance(board)) >= 0.5 else 0.0
+    work = runner(size, target, texture=texture)
     start_err = work.piece.error()
     t_setup = time.perf_counter()
     report("colour")
@@ -200,7 +201,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
                                    if isinstance(requested, tuple) else list(requested)),
               "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
               "draft_size": draft_size(size), "sharpen": float(sharpen),
-              "texture": float(texture), "face": found and found.to_record(),
+              "texture": texture, "face": found and found.to_record(),
               "mono_lines_rule": auto_lines(pic.gray, mask)}
     per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
                       "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c

@@ -40,7 +40,8 @@ from ..model.union import UnionStamp, fine_per_pixel, unique
 from ..picture.resample import unsharp
 from .palette import hex_to_rgb, lab, to_linear, to_srgb
 
-__all__ = ["Piece", "chord_weights_px", "linear_colors", "sharpened", "LIGHTNESS", "SHARPEN", "TEXTURE"]
+__all__ = ["Piece", "chord_weights_px", "linear_colors", "luminance", "sharpened", "LIGHTNESS", "SHARPEN",
+           "TEXTURE"]
 
 #: the weight of lightness in the error, against 1 for each of a* and b* (docs/planner.md, "Colour")
 LIGHTNESS = 2.0
@@ -57,6 +58,11 @@ TEXTURE = 3000.0
 _Y = np.array([0.2126, 0.7152, 0.0722])
 
 
+def luminance(linear_rgb):
+    """The luminance (Rec. 709) of linear RGB, shape (..., 3) -> (...)."""
+    return np.asarray(linear_rgb, dtype=np.float64) @ _Y
+
+
 def sharpened(rgb, *, amount=SHARPEN[0], sigma=SHARPEN[1]):
     """sRGB picture (m, m, 3) in [0, 1], its luminance sharpened: ``y + amount (y - blur(y))`` in linear light.
 
@@ -71,7 +77,7 @@ def sharpened(rgb, *, amount=SHARPEN[0], sigma=SHARPEN[1]):
     if amount <= 0:
         return np.asarray(rgb, dtype=np.float64)
     lin = to_linear(rgb)
-    y = lin @ _Y
+    y = luminance(lin)
     ys = unsharp(y, amount=amount, sigma=sigma)
     return to_srgb(lin * (ys / np.maximum(y, 1e-6))[..., None])
 
@@ -143,7 +149,7 @@ class Piece:
         self.u = np.empty((self.n, 3))
         self.u[:] = self.board
         # each pixel's mean luminance and mean squared luminance over its samples (the texture's variance)
-        self.lum = self.palette @ _Y
+        self.lum = luminance(self.palette)
         self.y1 = np.full(self.n, self.lum[0])
         self.y2 = np.full(self.n, self.lum[0] ** 2)
         self._mark = np.zeros(self.n, dtype=np.int64)
