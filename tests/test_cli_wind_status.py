@@ -45,3 +45,20 @@ def test_status_of_a_plan_never_wound_says_so(tmp_path):
     lines = none.stderr.strip().splitlines()
     assert len(lines) == 1 and "no winding of this plan to report" in lines[0] and "resume" not in lines[0]
     assert sorted(f.name for f in tmp_path.iterdir()) == ["p.json"]   # a status query writes nothing
+
+
+def test_a_missing_journal_named_by_hand_is_blamed_on_the_path(tmp_path):
+    plan = tmp_path / "p.json"
+    write_plan(small_plan(n=6), plan)
+    missing = str(tmp_path / "elsewhere.journal")
+    default = run("wind", str(plan), "--machine", "grbl-ring", "--status")
+    given = run("wind", str(plan), "--machine", "grbl-ring", "--status", "--journal", missing)
+    resumed = run("wind", str(plan), "--machine", "grbl-ring", "--port", "loop://", "--resume",
+                  "--journal", missing)
+    assert "give --journal" in default.stderr
+    for r in (given, resumed):
+        line = r.stderr.strip()
+        assert r.returncode == 2 and len(line.splitlines()) == 1, r.stderr
+        assert "elsewhere.journal" in line and "check the --journal path" in line
+        assert "give --journal" not in line
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["p.json"]

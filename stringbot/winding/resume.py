@@ -54,8 +54,10 @@ def _fmt_time(t):
 def status_lines(job):
     """What ``--status`` prints: steps done, when, the last error."""
     if not Path(job.journal_path).exists():
+        hint = ("check the --journal path" if job.journal_given
+                else "give --journal for one kept elsewhere")
         raise BadInput(f"no winding of this plan to report: journal {str(job.journal_path)!r} does not exist "
-                       "(a winding writes it when it starts; give --journal for one kept elsewhere)")
+                       f"(a winding writes it when it starts; {hint})")
     state = read_journal(job.journal_path)
     job.header_check(state)
     h = state.header
@@ -123,6 +125,9 @@ def resume_plan(job, *, from_step=None, head_side=None, confirm=None, choose=Non
         raise BadInput("a dry run's simulated machine lives only as long as its command, so there is "
                        "nothing to resume; rehearse resuming with `stringbot simulate --pty PATH` "
                        "and --port PATH")
+    if job.journal_given and not Path(job.journal_path).exists():
+        raise BadInput(f"journal {str(job.journal_path)!r} does not exist; nothing to resume "
+                       "(check the --journal path, or wind without --resume to start)")
     state = read_journal(job.journal_path)
     job.header_check(state)
     steps, machine = job.steps, job.machine

@@ -51,6 +51,7 @@ class Job:
                                                           faults=faults, realtime=realtime)
         self.journal_path = Path(journal) if journal else journal_path_for(plan_path,
                                                                            dry_run=self.dry_run)
+        self.journal_given = bool(journal)
         if _same_file(self.journal_path, self.plan_path):
             raise BadInput(f"--journal {str(self.journal_path)!r} is the plan itself; give the "
                            "journal its own file (default: beside the plan, PLAN.journal)")
