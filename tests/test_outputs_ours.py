@@ -238,5 +238,6 @@ def test_a_library_warning_reads_as_one_line_of_the_command(tmp_path, picture):
     assert code == 0, err
     warn = [x for x in err.splitlines() if "greedy stopped after" in x]
     assert len(warn) == 1 and warn[0].startswith("warning: greedy stopped after") and "stringbot.planner" not in err
+    assert "darkens what is left" in warn[0] and "fewer --lines" in warn[0]     # why, without -v
     code, _, err = run("-v", *args, cwd=tmp_path)
     assert code == 0 and "WARNING stringbot.planner" in err, err

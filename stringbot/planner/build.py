@@ -147,7 +147,9 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     stats.update(lines=len(chord_list), thread_diameters=round(thread_length(space.pin_xy, chord_list), 3),
                  setup_seconds=round(t_setup - t0, 3), seconds=round(time.perf_counter() - t0, 3))
     if target is not None and len(chord_list) < target:
-        log.warning("%s stopped after %d of %d lines", how.name, len(chord_list), target)
+        why = result.stats.get("stopped")
+        log.warning("%s stopped after %d of %d lines%s", how.name, len(chord_list), target,
+                    f": {why}" if why else "")
     return Plan(diameter_mm=knobs.model.diameter_mm, thread_mm=knobs.model.thread_mm,
                 pins=knobs.pins, frame=knobs.frame, pin_xy=space.pin_xy, crop=pic.crop, sequence=seq,
                 method=how.name, parameters=params, source=pic.source, stats=stats,

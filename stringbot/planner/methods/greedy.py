@@ -160,4 +160,8 @@ def plan_greedy(job):
     scale = (size - 1) / 2 / radius if radius else 1.0
     report("greedy")
     seq = greedy_sequence(job.space, size, job.picture.gray, job.mask, job.lines, start_pin=job.start_pin, **gk)
-    return seq, dict(gk, weight_at_size=round(gk["weight"] * scale, 4)), {}
+    stats = {}
+    if len(seq) - 1 < int(job.lines):
+        stats["stopped"] = (f"no chord from pin {seq[-1]} darkens what is left of the picture; "
+                            "ask for fewer --lines, or a picture with more dark parts")
+    return seq, dict(gk, weight_at_size=round(gk["weight"] * scale, 4)), stats
