@@ -103,13 +103,18 @@ def test_the_twin_draws_the_preview_one_process_would(monkeypatch):
     assert _no_children_left()
 
 
-def test_a_twin_that_does_not_draw_leaves_the_preview_here(monkeypatch, caplog):
+@pytest.mark.parametrize("missing", [(0, 1), (0,), (1,)])
+def test_a_half_not_drawn_leaves_the_preview_here(monkeypatch, caplog, missing):
     from stringbot.planner.model.render import png_bytes, preview_drawing, preview_png
 
     one = _plan(monkeypatch, 1, preview=1001)
+    make = woven_helper.TwinDrawing.make
 
-    def no_drawing(self, canvas, seq):
-        self._say.close()  # the twin ends without a word
+    def no_drawing(self, canvas, seq, half):
+        if half in missing:
+            self._say.close()  # the twin (half 0) or the helper (half 1) ends without a word
+        else:
+            make(self, canvas, seq, half)
 
     monkeypatch.setattr(woven_helper.TwinDrawing, "make", no_drawing)
     two = _plan(monkeypatch, 2, preview=1001)
