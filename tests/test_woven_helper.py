@@ -167,3 +167,31 @@ def test_a_wrong_setting_is_one_line_and_exit_2(tmp_path):
         "stringbot: error: STRINGBOT_PROCESSES='two'; expected 1 (one process) or 2 (a helper and its twin), "
         "or unset (two on Linux with two cores)"]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("helper_fills", [True, False])
+def test_the_chord_points_laid_out_by_the_helper_are_the_ones_built_here(helper_fills):
+    import time
+
+    from stringbot.planner.model.chords import chord_space
+    from stringbot.planner.model.lines import PinLines
+
+    space = chord_space(24, "circle")
+    fresh = [PinLines(space, 61, nearest=True, spacing=2.0), PinLines(space, 32, nearest=True)]
+    lines = [PinLines(space, 61, nearest=True, spacing=2.0), PinLines(space, 32, nearest=True)]
+    shared = woven_helper.SharedPoints(lines, [(1, p) for p in range(24)] + [(0, p) for p in range(23, -1, -1)])
+    assert lines[0].get_with_counts(0)[1] is not None  # built here before the helper: skipped by it
+    pid = woven_helper._fork(shared.fill if helper_fills else lambda: None)
+    shared.sent()
+    os.waitpid(pid, 0)
+    time.sleep(0.01)
+    taken = 0
+    for which in range(2):
+        for p in range(24):
+            taken += shared.points(lines[which], p) is not None
+            got, want = lines[which].get_with_counts(p), fresh[which].get_with_counts(p)
+            for a, b in zip(got, want):
+                np.testing.assert_array_equal(a, b)
+                assert a.dtype == b.dtype
+    assert taken == (47 if helper_fills else 0)  # every pin's but the one built here, or none
+    assert _no_children_left()
