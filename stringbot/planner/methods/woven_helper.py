@@ -317,7 +317,7 @@ class SharedPoints:
 
         self.lines = list(lines)
         pins = self.lines[0].space.pins
-        sizes = np.array([[int(pl.counts(p)[1].sum()) for p in range(pins)] for pl in self.lines], dtype=np.int64)
+        sizes = np.array([pl.totals() for pl in self.lines], dtype=np.int64)
         self._at = np.concatenate([[0], np.cumsum(sizes.ravel())]).reshape(-1)  # (which * pins + pin) -> start
         self._buf = mmap.mmap(-1, 4 * max(int(self._at[-1]), 1))
         self._taken = mmap.mmap(-1, len(self.lines) * pins)  # 1: the planner's process built it itself

@@ -102,6 +102,13 @@ class PinLines:
         r0, c0 = self.rc[p]
         return others, line_counts(r0, c0, self.rc[others, 0], self.rc[others, 1], spacing=self.spacing)
 
+    def totals(self):
+        """How many points each pin's chords have together (int64, shape (pins,)): :meth:`counts` summed,
+        for every pin at once."""
+        rc = self.rc
+        n = line_counts(rc[:, None, 0], rc[:, None, 1], rc[None, :, 0], rc[None, :, 1], spacing=self.spacing)
+        return np.where(self.space.index >= 0, n, 0).sum(axis=1)
+
     def get_with_counts(self, p):
         """``(others, flat, starts, counts)``: the pins reachable from ``p`` and their chords' points."""
         row = self.cache.get(p)
