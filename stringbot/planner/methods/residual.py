@@ -247,13 +247,13 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
 
             # the twin draws the preview of the reroutes only: after passes of inserts and deletes, drawn here
             drawing = None if preview is None or passes or frame_weights is not None else TwinDrawing(preview, model)
-            # the helper lays out the chooser's points first: the eye's grid's (taken as the pins are
-            # first visited), then the pixels' from the last pin down (best_start takes them from the first up)
+            # the helper lays out the chooser's points first: the pixels' from the last pin down (best_start
+            # takes them from the first up), then the eye's grid's (taken as the pins are first visited)
             points = None
             if canvas.eye is not None:
                 eye_lines = eye_lines_for(canvas, space)
-                points = SharedPoints([pin_lines, eye_lines], [(1, p) for p in range(space.pins)]
-                                      + [(0, p) for p in range(space.pins - 1, -1, -1)])
+                points = SharedPoints([pin_lines, eye_lines], [(0, p) for p in range(space.pins - 1, -1, -1)]
+                                      + [(1, p) for p in range(space.pins)])
             helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing,
                                  patience=PATIENCE, points=points)
     try:
