@@ -108,9 +108,10 @@ def preview_png(plan, size, *, board=255, thread=0):
 
 
 def png_bytes(image):
-    """Encode a uint8 gray array as PNG bytes."""
+    """Encode a uint8 gray array as PNG bytes (zlib's fastest level: the previews of the six sample pictures
+    2 % smaller to 1.4 % larger than at level 3, in two thirds of the time, 0.03-0.04 s at 1001 px)."""
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(np.asarray(image, dtype=np.uint8), "L").save(buf, format="PNG", compress_level=3)
+    Image.fromarray(np.asarray(image, dtype=np.uint8), "L").save(buf, format="PNG", compress_level=1)
     return buf.getvalue()
