@@ -179,7 +179,9 @@ def test_the_chord_points_laid_out_by_the_helper_are_the_ones_built_here(helper_
     space = chord_space(24, "circle")
     fresh = [PinLines(space, 61, nearest=True, spacing=2.0), PinLines(space, 32, nearest=True)]
     lines = [PinLines(space, 61, nearest=True, spacing=2.0), PinLines(space, 32, nearest=True)]
-    shared = woven_helper.SharedPoints(lines, [(1, p) for p in range(24)] + [(0, p) for p in range(23, -1, -1)])
+    from stringbot.planner.methods.shared_points import SharedPoints
+
+    shared = SharedPoints(lines, [(1, p) for p in range(24)] + [(0, p) for p in range(23, -1, -1)])
     assert lines[0].get_with_counts(0)[1] is not None  # built here before the helper: skipped by it
     pid = woven_helper._fork(shared.fill if helper_fills else lambda: None)
     shared.sent()

@@ -243,7 +243,8 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         from .woven_helper import WovenHelper, two_cores
 
         if two_cores():  # a helper process draws the polish's canvas while the threads are chosen
-            from .woven_helper import SharedPoints, TwinDrawing
+            from .shared_points import SharedPoints
+            from .woven_helper import TwinDrawing
 
             # the twin draws the preview of the reroutes only: after passes of inserts and deletes, drawn here
             drawing = None if preview is None or passes or frame_weights is not None else TwinDrawing(preview, model)
