@@ -103,13 +103,18 @@ def test_the_twin_draws_the_preview_one_process_would(monkeypatch):
     assert _no_children_left()
 
 
-def test_a_twin_that_does_not_draw_leaves_the_preview_here(monkeypatch, caplog):
+@pytest.mark.parametrize("missing", [(0, 1), (0,), (1,)])
+def test_a_half_not_drawn_leaves_the_preview_here(monkeypatch, caplog, missing):
     from stringbot.planner.model.render import png_bytes, preview_drawing, preview_png
 
     one = _plan(monkeypatch, 1, preview=1001)
+    make = woven_helper.TwinDrawing.make
 
-    def no_drawing(self, canvas, seq):
-        self._say.close()  # the twin ends without a word
+    def no_drawing(self, canvas, seq, half):
+        if half in missing:
+            self._say.close()  # the twin (half 0) or the helper (half 1) ends without a word
+        else:
+            make(self, canvas, seq, half)
 
     monkeypatch.setattr(woven_helper.TwinDrawing, "make", no_drawing)
     two = _plan(monkeypatch, 2, preview=1001)
@@ -162,3 +167,33 @@ def test_a_wrong_setting_is_one_line_and_exit_2(tmp_path):
         "stringbot: error: STRINGBOT_PROCESSES='two'; expected 1 (one process) or 2 (a helper and its twin), "
         "or unset (two on Linux with two cores)"]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("helper_fills", [True, False])
+def test_the_chord_points_laid_out_by_the_helper_are_the_ones_built_here(helper_fills):
+    import time
+
+    from stringbot.planner.model.chords import chord_space
+    from stringbot.planner.model.lines import PinLines
+
+    space = chord_space(24, "circle")
+    fresh = [PinLines(space, 61, nearest=True, spacing=2.0), PinLines(space, 32, nearest=True)]
+    lines = [PinLines(space, 61, nearest=True, spacing=2.0), PinLines(space, 32, nearest=True)]
+    from stringbot.planner.methods.shared_points import SharedPoints
+
+    shared = SharedPoints(lines, [(1, p) for p in range(24)] + [(0, p) for p in range(23, -1, -1)])
+    assert lines[0].get_with_counts(0)[1] is not None  # built here before the helper: skipped by it
+    pid = woven_helper._fork(shared.fill if helper_fills else lambda: None)
+    shared.sent()
+    os.waitpid(pid, 0)
+    time.sleep(0.01)
+    taken = 0
+    for which in range(2):
+        for p in range(24):
+            taken += shared.points(lines[which], p) is not None
+            got, want = lines[which].get_with_counts(p), fresh[which].get_with_counts(p)
+            for a, b in zip(got, want):
+                np.testing.assert_array_equal(a, b)
+                assert a.dtype == b.dtype
+    assert taken == (47 if helper_fills else 0)  # every pin's but the one built here, or none
+    assert _no_children_left()

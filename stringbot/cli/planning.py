@@ -164,11 +164,11 @@ def plan_cmd(image, output, preview, method, disconnected, pins, machine, diamet
     if machine is not None:
         p.parameters["machine"] = machine
     est = None
-    if mach is not None and p.connected:  # while the polish's twin may still be drawing the preview
+    if mach is not None and p.connected:  # while the polish's helper processes may still be drawing the preview
         from ..motion import estimate
 
         est = estimate(p, mach)
-    png = mark_png(preview_png(p, PREVIEW_SIZE))  # the twin may have drawn and encoded it meanwhile
+    png = mark_png(preview_png(p, PREVIEW_SIZE))  # the polish's helper processes may have drawn it meanwhile
     write_all_atomic([(output, p.to_json(), "plan"), (preview, png, "preview")])   # both or neither
     s = p.stats
     kind = "disconnected " if not p.connected else ""

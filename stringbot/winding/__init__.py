@@ -74,8 +74,19 @@ append-only journal, :mod:`.session` a whole ``stringbot wind`` run and
 """
 
 from .journal import Journal, JournalState, journal_path_for, read_journal
-from .loop import Progress, Winder, WindResult, WindState, step_seconds
-from .session import Job, dry_run_problem, load_job, wind_plan
+
+# the loop and the session (the machine links, serial ports) are imported when first named: a command that
+# reads a journal or a by-hand position only (`stringbot plan` checking its output) does not load them
+_LATER = {"Progress": "loop", "Winder": "loop", "WindResult": "loop", "WindState": "loop", "step_seconds": "loop",
+          "Job": "session", "dry_run_problem": "session", "load_job": "session", "wind_plan": "session"}
+
+
+def __getattr__(name):
+    if name in _LATER:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LATER[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = ["Winder", "WindState", "WindResult", "Progress", "step_seconds", "Journal",
            "JournalState", "read_journal", "journal_path_for", "Job", "load_job", "wind_plan",

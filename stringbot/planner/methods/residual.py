@@ -98,7 +98,7 @@ def best_start(canvas, space, pin_lines):
 
 
 def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_lines=None, patience=PATIENCE,
-                      on_chord=None):
+                      on_chord=None, eye_lines=None):
     """Choose a pin sequence by the darkness residual (see the module notes).
 
     Parameters
@@ -120,6 +120,8 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     on_chord : callable, optional
         ``on_chord((a, b))`` for each chord chosen, as it is (some may be cut
         back at the end).
+    eye_lines : PinLines, optional
+        The per-pin line points on the eye's grid (:func:`eye_lines_for`; built here when not given).
 
     Returns
     -------
@@ -130,7 +132,7 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     pins = pin_lines or PinLines(space, canvas.size, nearest=True)
     mix = EYE_SHARE if canvas.eye is not None else 0.0
     if mix:
-        eye_lines = PinLines(space, canvas.eye.size, nearest=True, spacing=1.0)
+        eye_lines = eye_lines or eye_lines_for(canvas, space)
         eye_rows = {}
         eg = canvas.eye_slope
         # the pixel slope is a darkness per unit of coverage; the eye's is per unit of coverage of a
@@ -198,6 +200,11 @@ def residual_sequence(canvas, space, lines, *, start_pin=None, min_loop=3, pin_l
     return seq
 
 
+def eye_lines_for(canvas, space):
+    """The chooser's per-pin line points on the eye's grid (a point every grid pixel)."""
+    return PinLines(space, canvas.eye.size, nearest=True, spacing=1.0)
+
+
 def run(job):
     """``--method residual`` through the methods' contract (:mod:`stringbot.planner.methods`): the residual
     choice under the thread model, then the refinement (a line count) or the polish (``lines="auto"``)."""
@@ -231,21 +238,29 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     # a plan to be polished (see CHOOSE_POINTS_POLISHED)
     points = CHOOSE_POINTS_POLISHED if polish else CHOOSE_POINTS
     pin_lines = PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / points))
-    helper = None
+    helper = eye_lines = None
     if polish:
         from .woven_helper import WovenHelper, two_cores
 
         if two_cores():  # a helper process draws the polish's canvas while the threads are chosen
+            from .shared_points import SharedPoints
             from .woven_helper import TwinDrawing
 
             # the twin draws the preview of the reroutes only: after passes of inserts and deletes, drawn here
             drawing = None if preview is None or passes or frame_weights is not None else TwinDrawing(preview, model)
+            # the helper lays out the chooser's points first: the pixels' from the last pin down (best_start
+            # takes them from the first up), then the eye's grid's (taken as the pins are first visited)
+            points = None
+            if canvas.eye is not None:
+                eye_lines = eye_lines_for(canvas, space)
+                points = SharedPoints([pin_lines, eye_lines], [(0, p) for p in range(space.pins - 1, -1, -1)]
+                                      + [(1, p) for p in range(space.pins)])
             helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing,
-                                 patience=PATIENCE)
+                                 patience=PATIENCE, points=points)
     try:
         t = time.perf_counter()
         seq = residual_sequence(canvas, space, lines, start_pin=start_pin, pin_lines=pin_lines,
-                                on_chord=None if helper is None else helper.add)
+                                on_chord=None if helper is None else helper.add, eye_lines=eye_lines)
         t_choose = time.perf_counter() - t
         # more lines than a run that stopped itself can keep (it keeps PATIENCE fewer than it chose)
         capped = lines == "auto" and len(seq) - 1 > MAX_AUTO - PATIENCE
@@ -262,7 +277,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         if capped:
             out["line_cap"] = MAX_AUTO
             log.info("residual: stopped at the line cap of %d lines, not because the picture was matched", MAX_AUTO)
-        del canvas, pin_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
+        del canvas, pin_lines, eye_lines  # their chord caches (hundreds of MB at 600 pins) are not needed any more
         if not polish:
             return seq, out, None
         t = time.perf_counter()

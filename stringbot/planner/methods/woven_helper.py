@@ -196,15 +196,18 @@ def twin(canvas, seq, order, pin_lines, *, after=None):
 
 
 class TwinDrawing:
-    """The preview of a polished plan, drawn by the twin while the helper sends the plan back.
+    """The preview of a polished plan, drawn by the twin and the helper once the plan is polished.
 
     Made in the planner's process before the helper is forked (a shared
-    buffer and a pipe the twin says "done" on); called as a plan's
+    buffer and a pipe the two say "done" on); the twin draws the top half of
+    the rows (:data:`HALVES` ``[0]``), the helper the bottom half, after it
+    has sent the plan back (the reference rendering draws a band of rows as
+    those rows of the whole).  Called as a plan's
     ``woven_drawings(size, board, thread)``: the preview
     (:func:`~stringbot.planner.model.render.preview_drawing`: uint8, ``size`` px,
-    black thread on white) once the twin has made it, or None (another size,
-    or the twin failed: the caller draws it); :meth:`png` the same as PNG
-    bytes, which the twin encodes too.
+    black thread on white) once both halves are in, or None (another size,
+    or a half not drawn: the caller draws it); :meth:`png` the same as PNG
+    bytes.
 
     Parameters
     ----------
@@ -218,28 +221,25 @@ class TwinDrawing:
         from multiprocessing.connection import Pipe
 
         self.size, self.model = int(size), model
+        self.halves = ((0, self.size // 2), (self.size // 2, self.size))  # the twin's rows, the helper's
         self._buf = mmap.mmap(-1, self.size * self.size)
-        self._png_buf = mmap.mmap(-1, self.size * (self.size + 1) + 65536)  # deflate's worst case, with room
         self._done, self._say = Pipe(duplex=False)
         self._img = self._png = None
         self._pid = None
 
-    def make(self, canvas, seq):  # pragma: no cover - runs in the twin
-        """Draw the polished sequence ``seq`` (the twin's, the same as the helper's) and say so."""
-        from ..model.render import PREVIEW_SAMPLES, png_bytes, woven_image
+    def make(self, canvas, seq, half):  # pragma: no cover - runs in the twin and the helper
+        """Draw rows ``halves[half]`` of the polished sequence ``seq`` (the same in both) and say so."""
+        from ..model.render import PREVIEW_SAMPLES, woven_image
 
+        r0, r1 = self.halves[half]
         img = woven_image(list(zip(seq[:-1], seq[1:])), canvas.pin_xy, size=self.size,
-                          thread_fraction=self.model.fraction, samples=PREVIEW_SAMPLES)
-        self._buf[:] = img.tobytes()
-        png = png_bytes(img)
-        fits = len(png) <= len(self._png_buf)
-        if fits:
-            self._png_buf[:len(png)] = png
-        self._say.send_bytes(str(len(png) if fits else 0).encode())
+                          thread_fraction=self.model.fraction, samples=PREVIEW_SAMPLES, rows=(r0, r1))
+        self._buf[r0 * self.size:r1 * self.size] = img.tobytes()
+        self._say.send_bytes(str(half).encode())  # a few bytes: one write, never mixed with the other's
         self._say.close()
 
     def sent(self):
-        """This process is done with the writing end (it is forked already)."""
+        """This process is done with the writing end (it is forked already, or has drawn its half)."""
         self._say.close()
 
     def adopt(self, pid):
@@ -247,15 +247,16 @@ class TwinDrawing:
         self._pid = pid
 
     def _take(self, warn=True):
-        """Take the drawing in, once: wait for the twin's word (or its end)."""
+        """Take the drawing in, once: wait for both halves (or the end of both processes)."""
         if self._done is not None:
+            got = set()
             try:
-                n = int(self._done.recv_bytes())
+                while len(got) < len(self.halves):
+                    got.add(int(self._done.recv_bytes()))
                 self._img = np.frombuffer(self._buf, dtype=np.uint8).reshape(self.size, self.size).copy()
-                self._png = self._png_buf[:n] if n else None
-            except (EOFError, OSError):
+            except (EOFError, OSError, ValueError):
                 if warn:
-                    log.warning("polish: the twin did not draw the preview; drawing it here")
+                    log.warning("polish: the helper processes did not draw the preview; drawing it here")
             self._done.close()
             self._done = None
 
@@ -281,7 +282,12 @@ class TwinDrawing:
 
     def png(self, size, board, thread):
         """The drawing as PNG bytes (:func:`~stringbot.planner.model.render.png_bytes` of it), or None."""
-        return self._png if self(size, board, thread) is not None else None
+        img = self(size, board, thread)
+        if img is not None and self._png is None:
+            from ..model.render import png_bytes
+
+            self._png = png_bytes(img)
+        return self._png if img is not None else None
 
 
 class WovenHelper:
@@ -294,14 +300,17 @@ class WovenHelper:
     space : ChordSpace
         The pins (the helper lays out the polish's chord points while it waits for chords).
     drawing : TwinDrawing, optional
-        The preview the twin draws (then the polish's canvas is not sent back).
+        The preview the twin and the helper draw, half each (then the polish's canvas is not sent back).
     patience : int
         How many of the last chords chosen an automatic run may still cut back
         (:data:`~stringbot.planner.methods.residual.PATIENCE`): the helper draws those before them
         while it waits.
+    points : SharedPoints, optional
+        The chooser's chord points, which the helper lays out first
+        (:class:`~stringbot.planner.methods.shared_points.SharedPoints`).
     """
 
-    def __init__(self, make_canvas, space, *, patience, drawing=None):
+    def __init__(self, make_canvas, space, *, patience, drawing=None, points=None):
         from multiprocessing.connection import Pipe
 
         self._conn, child = Pipe()
@@ -311,12 +320,16 @@ class WovenHelper:
 
         def serve():  # pragma: no cover - runs in the child
             self._conn.close()
+            if points is not None:
+                points.fill()
             _serve(child, make_canvas, space, drawing, patience)
 
         self.pid = _fork(serve)
         child.close()
         if drawing is not None:
             drawing.sent()
+        if points is not None:
+            points.sent()
 
     def _send(self, msg):
         if not self.failed:
@@ -426,9 +439,7 @@ def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - r
             twins = []
 
             def partner(*args):
-                mate = twin(*args, after=None if drawing is None else drawing.make)
-                if drawing is not None:
-                    drawing.sent()
+                mate = twin(*args, after=None if drawing is None else lambda c, s: drawing.make(c, s, 0))
                 twins.append(mate.pid)
                 mate.pid = None  # the twin may go on drawing the preview: waited for at the end
                 return mate
@@ -442,6 +453,8 @@ def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - r
             stats = dict(stats, behind_seconds=round(t - sent, 3), canvas_seconds=round(t1 - t, 3),
                          pins_seconds=round(time.perf_counter() - t1, 3), drawn_early=drawn)
             conn.send(("done", seq, stats))
+            if drawing is not None:  # the other half of the preview, while the twin draws its own
+                drawing.make(canvas, seq, 1)
             for pid in twins:
                 os.waitpid(pid, 0)
             return

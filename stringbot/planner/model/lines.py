@@ -13,7 +13,14 @@ import numpy as np
 
 from .chords import pin_pixels
 
-__all__ = ["line_samples", "PinLines"]
+__all__ = ["line_samples", "line_counts", "PinLines"]
+
+
+def line_counts(r0, c0, r1, c1, *, spacing=1.0):
+    """How many points :func:`line_samples` takes along each chord: ``int(hypot / spacing)``, at least 1
+    (int64, shape (k,))."""
+    r1, c1 = np.asarray(r1, dtype=np.float64), np.asarray(c1, dtype=np.float64)
+    return np.maximum((np.hypot(r1 - r0, c1 - c0) / spacing).astype(np.int64), 1)
 
 
 def line_samples(r0, c0, r1, c1, size, *, nearest=False, spacing=1.0):
@@ -40,7 +47,7 @@ def line_samples(r0, c0, r1, c1, size, *, nearest=False, spacing=1.0):
     """
     r1, c1 = np.asarray(r1, dtype=np.float64), np.asarray(c1, dtype=np.float64)
     dr, dc = r1 - r0, c1 - c0
-    n = np.maximum((np.hypot(dr, dc) / spacing).astype(np.int64), 1)
+    n = line_counts(r0, c0, r1, c1, spacing=spacing)
     starts = np.concatenate([[0], np.cumsum(n)[:-1]])
     # one row per chord, padded to the longest (fewer gathers than repeating per point); the points kept
     # are, in order, those of np.linspace
@@ -68,7 +75,8 @@ class PinLines:
 
     ``nearest``: points on their nearest pixel (else truncated, as ThreadTone does); ``spacing``:
     pixels between points (1: ThreadTone's); ``keep``: False builds them again each time (for a caller
-    that keeps them itself).
+    that keeps them itself).  ``shared`` (set by the caller, None by default): where another process
+    may have laid out a pin's points already, ``shared.points(self, p)`` (flat, or None: built here).
     """
 
     def __init__(self, space, size, *, nearest=False, spacing=1.0, keep=True):
@@ -79,15 +87,38 @@ class PinLines:
             self.rc = np.clip(np.floor(np.asarray(space.pin_xy)[:, ::-1] * (size - 1) + 1e-9), 0,
                               size - 1).astype(np.int64)
         self.cache = {}
+        self.shared = None
+
+    def build(self, p):
+        """``(others, starts, flat)`` of pin ``p``, built afresh."""
+        others = np.flatnonzero(self.space.index[p] >= 0)
+        r0, c0 = self.rc[p]
+        return (others,) + line_samples(r0, c0, self.rc[others, 0], self.rc[others, 1], self.size,
+                                        nearest=self.nearest, spacing=self.spacing)
+
+    def counts(self, p):
+        """``(others, n)``: the pins reachable from ``p`` and how many points each chord has (int64)."""
+        others = np.flatnonzero(self.space.index[p] >= 0)
+        r0, c0 = self.rc[p]
+        return others, line_counts(r0, c0, self.rc[others, 0], self.rc[others, 1], spacing=self.spacing)
+
+    def totals(self):
+        """How many points each pin's chords have together (int64, shape (pins,)): :meth:`counts` summed,
+        for every pin at once."""
+        rc = self.rc
+        n = line_counts(rc[:, None, 0], rc[:, None, 1], rc[None, :, 0], rc[None, :, 1], spacing=self.spacing)
+        return np.where(self.space.index >= 0, n, 0).sum(axis=1)
 
     def get_with_counts(self, p):
         """``(others, flat, starts, counts)``: the pins reachable from ``p`` and their chords' points."""
         row = self.cache.get(p)
         if row is None:
-            others = np.flatnonzero(self.space.index[p] >= 0)
-            r0, c0 = self.rc[p]
-            starts, flat = line_samples(r0, c0, self.rc[others, 0], self.rc[others, 1], self.size,
-                                        nearest=self.nearest, spacing=self.spacing)
+            flat = None if self.shared is None else self.shared.points(self, p)
+            if flat is None:
+                others, starts, flat = self.build(p)
+            else:  # laid out elsewhere: the same points (line_samples's starts, from the same counts)
+                others, n = self.counts(p)
+                starts = np.concatenate([[0], np.cumsum(n)[:-1]])
             counts = np.diff(np.append(starts, len(flat))).astype(np.float32)
             row = (others, flat, starts, counts)
             if self.keep:

@@ -78,18 +78,20 @@ def draw_woven(plan, *, size=1001, board=255, thread=0, samples=None):
                        board=board, thread=thread, samples=samples)
 
 
-def woven_image(chords, pin_xy, *, size, thread_fraction, board=255, thread=0, samples=None):
-    """The reference rendering of chords as uint8 gray."""
+def woven_image(chords, pin_xy, *, size, thread_fraction, board=255, thread=0, samples=None, rows=None):
+    """The reference rendering of chords as uint8 gray (``rows``: only the rows ``r0 <= r < r1`` of it,
+    :func:`~stringbot.planner.model.reference.reference_coverage`'s)."""
     from .reference import SAMPLES_PER_WIDTH, reference_gray
 
     gray = reference_gray(chords, pin_xy, size=size, thread_fraction=thread_fraction, board=float(board),
-                          thread=float(thread), samples=SAMPLES_PER_WIDTH if samples is None else samples)
+                          thread=float(thread), samples=SAMPLES_PER_WIDTH if samples is None else samples,
+                          rows=rows)
     return np.clip(np.rint(gray), 0, 255).astype(np.uint8)
 
 
 def preview_drawing(plan, size, *, board=255, thread=0):
     """The preview `stringbot plan` writes: :func:`draw_woven` with :data:`PREVIEW_SAMPLES`, as the
-    polish's twin drew it already where it did (the plan's ``woven_drawings``)."""
+    polish's helper processes drew it already where they did (the plan's ``woven_drawings``)."""
     made = getattr(plan, "woven_drawings", None)  # drawn already, by the polish's helper process
     img = None if made is None else made(size, board, thread)
     return img if img is not None else draw_woven(plan, size=size, board=board, thread=thread,
@@ -97,8 +99,8 @@ def preview_drawing(plan, size, *, board=255, thread=0):
 
 
 def preview_png(plan, size, *, board=255, thread=0):
-    """``png_bytes(preview_drawing(plan, size, ...))``, taken as it is when the polish's twin has
-    encoded it already (the plan's ``woven_drawings``)."""
+    """``png_bytes(preview_drawing(plan, size, ...))``, of the drawing the polish's helper processes
+    made where they did (the plan's ``woven_drawings``)."""
     made = getattr(plan, "woven_drawings", None)
     png = getattr(made, "png", None)
     png = None if png is None else png(size, board, thread)
@@ -106,9 +108,10 @@ def preview_png(plan, size, *, board=255, thread=0):
 
 
 def png_bytes(image):
-    """Encode a uint8 gray array as PNG bytes."""
+    """Encode a uint8 gray array as PNG bytes (zlib's fastest level: the previews of the six sample pictures
+    2 % smaller to 1.4 % larger than at level 3, in two thirds of the time, 0.03-0.04 s at 1001 px)."""
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(np.asarray(image, dtype=np.uint8), "L").save(buf, format="PNG", compress_level=3)
+    Image.fromarray(np.asarray(image, dtype=np.uint8), "L").save(buf, format="PNG", compress_level=1)
     return buf.getvalue()
