@@ -42,6 +42,14 @@ def test_the_schedule_does_not_end_with_the_darkest_thread_while_it_has_a_run_be
     assert fit_schedule([(0, [0] * 3), (1, [0] * 4)], 5, darkest=1) == [(0, 2), (1, 3)]   # B's only run stays
 
 
+def test_the_darkest_threads_late_runs_join_its_run_before():
+    runs = [(0, [0] * 6), (1, [0] * 4), (0, [0] * 5), (2, [0] * 2), (0, [0] * 3)]     # A5 B3 A4 C1 A2 (15)
+    # late 0.5: A4 starts at 8 of 15, past the first half: it and A2 join A5
+    assert fit_schedule(runs, 5, darkest=0, late=0.5) == [(0, 11), (1, 3), (2, 1)]
+    assert fit_schedule(runs, 5, darkest=0, late=0.2) == [(0, 5), (1, 3), (0, 6), (2, 1)]   # A2 only (and not last)
+    assert fit_schedule(runs, 5, darkest=1, late=0.9) == fit_schedule(runs, 5, darkest=1)   # B's one run: as it was
+
+
 def test_auto_gives_n_threads_or_says_why_fewer(picture, tmp_path, capsys):
     from stringbot.planner.colour.reach import auto_palette
     from stringbot.planner.picture.read import read_picture

@@ -15,13 +15,13 @@ import time
 import numpy as np
 
 from ...errors import BadInput
-from ..picture.read import read_picture
+from ..picture.read import LUMINANCE, read_picture
 from ..plan_file import Layer, Plan
 from ..progress import report
 from ..model.thread import ThreadModel
 from .palette import WHITE, hex_to_rgb, to_linear
 from .reach import auto_palette, bare_share
-from .model import SHARPEN, TEXTURE
+from .model import FINE, SHARPEN, TEXTURE
 from .runs import RUN_DEFAULTS
 
 log = logging.getLogger(__name__)
@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 __all__ = ["plan_colour", "auto_colour_lines", "COLOUR_DEFAULTS"]
 
 COLOUR_DEFAULTS = {"spool_changes": RUN_DEFAULTS["spool_changes"], "min_run": RUN_DEFAULTS["min_run"], "size": 256,
-                   "sharpen": SHARPEN[0], "texture": TEXTURE}
+                   "sharpen": SHARPEN[0], "texture": TEXTURE, "fine": FINE}
 #: the draft's fine canvas: samples across a thread (about half a sample: it only orders the colours)
 DRAFT_SAMPLES = 0.5
 #: the draft's thread is this many times as wide, each of its chords standing for as many of the plan's: a
@@ -61,7 +61,7 @@ def auto_colour_lines(gray, mask, background, colors):
 def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=COLOUR_DEFAULTS["size"], crop=None,
                 lines="auto", start_pin=None, model=None, cache=True, spool_changes=COLOUR_DEFAULTS["spool_changes"],
                 min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, face="off",
-                sharpen=COLOUR_DEFAULTS["sharpen"], texture=COLOUR_DEFAULTS["texture"]):
+                sharpen=COLOUR_DEFAULTS["sharpen"], texture=COLOUR_DEFAULTS["texture"], fine=COLOUR_DEFAULTS["fine"]):
     """Plan a colour thread painting.
 
     Parameters
@@ -101,6 +101,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         The weight of each pixel's texture (its variance of luminance over its samples) in the plan's
         error (:class:`.model.Piece`; 0: the mean colour alone); the draft orders the colours without it,
         and on a dark board (luminance under a half) the plan too.
+    fine : float
+        The weight of the fine luminance (:class:`.model.Fine`: the picture's luminance matched on a grid
+        twice as fine as ``size``; 0: none); in the plan only, and not on a dark board.
 
     Returns
     -------
@@ -110,7 +113,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     from ..knobs import auto_lines, check_knobs
     from ..model.chords import chord_pixels, chord_space, frame_mask, thread_length
     from ..picture.resample import resize_square
-    from .model import Piece, chord_weights_px, linear_colors, luminance, sharpened
+    from .model import Fine, Piece, chord_weights_px, linear_colors, luminance, sharpened
     from .runs import Runner, plan_runs
 
     t0 = time.perf_counter()
@@ -152,29 +155,44 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     report("chords")
     board, lin = to_linear(hex_to_rgb(background)), linear_colors(colors)
 
-    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None):
-        """A :class:`Runner` on a ``grid``-px working grid (the picture ``rgb`` read at that size)."""
-        indptr, indices = chord_pixels(space, grid, cache=cache)
-        weights = chord_weights_px(space, grid, model.width_px(grid) * thicker)
+    def weights_at(grid):
+        """The pixel weights on a ``grid``-px grid: the frame, times ``weight`` if given."""
         w = frame_mask(grid, frame).astype(np.float64)
         if weight is not None:
             w = w * (np.asarray(weight, dtype=np.float64) if grid == size else
                      resize_square(np.asarray(weight, dtype=np.float64), grid))
-        piece = Piece(to_linear(rgb.reshape(-1, 3)), w.ravel(), board, lin, space.pin_xy,
+        return w
+
+    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None, fine=0.0):
+        """A :class:`Runner` on a ``grid``-px working grid (the picture ``rgb`` read at that size)."""
+        indptr, indices = chord_pixels(space, grid, cache=cache)
+        weights = chord_weights_px(space, grid, model.width_px(grid) * thicker)
+        chords2 = fine_grid = None
+        if fine:             # the picture's luminance on a grid twice as fine, and the chords there
+            two = 2 * grid
+            chords2 = (*chord_pixels(space, two, cache=cache),
+                       chord_weights_px(space, two, model.width_px(two) * thicker))
+            rgb2 = read_picture(path, size=two, crop=pic.crop, gray="luminance").rgb if picture is None else \
+                np.stack([resize_square(pic.rgb[..., c], two) for c in range(3)], axis=-1)
+            fine_grid = Fine(rgb2.reshape(-1, 3) @ np.asarray(LUMINANCE, dtype=np.float64),
+                             (weights_at(two) * fine).ravel(), float(np.median(chords2[2])))
+        piece = Piece(to_linear(rgb.reshape(-1, 3)), weights_at(grid).ravel(), board, lin, space.pin_xy,
                       model.width_px(grid) * thicker, nominal=float(np.median(weights)), samples=samples,
-                      texture=texture)
-        return Runner(space, indptr, indices, weights, piece)
+                      texture=texture, fine=fine_grid)
+        return Runner(space, indptr, indices, weights, piece, fine=chords2)
 
     if not (isinstance(sharpen, (int, float)) and 0 <= sharpen <= 10):
         raise BadInput(f"sharpen {sharpen!r}; expected 0..10")
-    if not (isinstance(texture, (int, float)) and 0 <= texture <= 1e6):
-        raise BadInput(f"texture {texture!r}; expected 0..1000000")
+    for what, v in (("texture", texture), ("fine", fine)):
+        if not (isinstance(v, (int, float)) and 0 <= v <= 1e6):
+            raise BadInput(f"{what} {v!r}; expected 0..1000000")
     target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
     grid = draft_size(size)
     # the texture term is measured on light boards; on a dark one it stopped a light thread's moon at night after
     # 8 lines (tests/test_outputs_ours.py): there the mean colour alone (and the plan records the weight used)
-    texture = float(texture) if float(luminance(board)) >= 0.5 else 0.0
-    work = runner(size, target, texture=texture)
+    light = float(luminance(board)) >= 0.5
+    texture, fine = (float(texture), float(fine)) if light else (0.0, 0.0)
+    work = runner(size, target, texture=texture, fine=fine)
     start_err = work.piece.error()
     t_setup = time.perf_counter()
     report("colour")
@@ -201,7 +219,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
                                    if isinstance(requested, tuple) else list(requested)),
               "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
               "draft_size": draft_size(size), "sharpen": float(sharpen),
-              "texture": texture, "face": found and found.to_record(),
+              "texture": texture, "fine": fine, "face": found and found.to_record(),
               "mono_lines_rule": auto_lines(pic.gray, mask)}
     per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
                       "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c

@@ -32,16 +32,28 @@ kept exactly as threads are laid (the mean luminance and the mean of its
 square over the samples) and judged for a typical thread as the colour is:
 a mid tone is then rather made of a lighter thread covering more of the
 pixel than of a dark one covering less.
+
+**The fine luminance.**  The score's plain SSIM compares the luminance at
+twice the working grid's resolution, unblurred, where a thread's place
+within a pixel shows.  So the error may also count, on a grid twice as fine
+(2 x 2 cells a pixel, each a quarter of its samples), the squared difference
+of each cell's gray (the sRGB value of its luminance) from the picture's
+there (:class:`Fine`); a chord is then judged by the cells it crosses on that
+grid, which tell on which side of a pixel it runs.  Its colour error is
+judged there too, each cell carrying a quarter of its pixel's ``S`` (a chord
+crosses twice as many cells, each with twice the share): one gather and one
+sum as before, on the finer grid.
 """
 
 import numpy as np
 
 from ..model.union import UnionStamp, fine_per_pixel, unique
+from ..picture.read import LUMINANCE
 from ..picture.resample import unsharp
 from .palette import hex_to_rgb, lab, to_linear, to_srgb
 
-__all__ = ["Piece", "chord_weights_px", "linear_colors", "luminance", "sharpened", "LIGHTNESS", "SHARPEN",
-           "TEXTURE"]
+__all__ = ["Piece", "Fine", "chord_weights_px", "linear_colors", "luminance", "sharpened", "LIGHTNESS", "SHARPEN",
+           "TEXTURE", "FINE"]
 
 #: the weight of lightness in the error, against 1 for each of a* and b* (docs/planner.md, "Colour")
 LIGHTNESS = 2.0
@@ -54,6 +66,10 @@ SHARPEN = (2.0, 1.0)
 #: draft orders the colours without it): the plain luminance SSIM at Prem-Dharshan's line count with 2 spool
 #: changes chelsea 0.333 -> 0.340, coffee 0.335 -> 0.340, the colour error lower (docs/planner.md, "Colour")
 TEXTURE = 3000.0
+#: the weight of the fine luminance (:class:`Fine`): each cell's squared difference of gray (0..1) times this.
+#: The plain luminance SSIM at Prem-Dharshan's line counts with 2 / 8 / 32 spool changes: chelsea 0.340 / 0.334 /
+#: 0.330 -> 0.345 / 0.347 / 0.344, coffee 0.340 / 0.366 / 0.365 -> 0.363 / 0.382 / 0.381 (docs/planner.md, "Colour")
+FINE = 8000.0
 #: linear light -> luminance (Rec. 709)
 _Y = np.array([0.2126, 0.7152, 0.0722])
 
@@ -98,6 +114,37 @@ def chord_weights_px(space, size, width_px):
     return np.minimum(w, 0.999).astype(np.float32)
 
 
+class Fine:
+    """The picture's luminance on a grid twice as fine as the working grid: what :class:`Piece` matches there.
+
+    Parameters
+    ----------
+    gray : ndarray of float, shape (2m * 2m,)
+        The picture's gray there, flat cells: the sRGB value of its luminance (linear light), 0..1.
+    weight : ndarray of float, shape (2m * 2m,)
+        Each cell's weight (0 outside the frame), times the term's (:data:`FINE`).
+    nominal : float
+        A typical thread's share of a cell.
+    """
+
+    def __init__(self, gray, weight, nominal):
+        self.gray = np.asarray(gray, dtype=np.float64).ravel()
+        self.weight = np.asarray(weight, dtype=np.float64).ravel()
+        self.nominal = float(nominal)
+
+
+#: sRGB values of linear light 0, 1/N, ..., 1: the fine luminance's gray by table (8 times faster; within 1e-4)
+_GRAY_N = 65535
+_GRAY = to_srgb(np.linspace(0.0, 1.0, _GRAY_N + 1))
+_GRAY_WEIGHTS = np.asarray(LUMINANCE, dtype=np.float64)
+
+
+def _gray(rgb):
+    """The score's gray of linear RGB (..., 3) in [0, 1]: its sRGB values (by :data:`_GRAY`) weighed by
+    :data:`~stringbot.planner.picture.read.LUMINANCE`, as ``skimage.color.rgb2gray``."""
+    return _GRAY.take((np.clip(rgb, 0.0, 1.0) * _GRAY_N + 0.5).astype(np.intp)) @ _GRAY_WEIGHTS
+
+
 class Piece:
     """The piece under construction on an ``m x m`` working grid (see the module notes).
 
@@ -123,13 +170,16 @@ class Piece:
     texture : float, optional
         The weight of each pixel's variance of luminance over its samples in the error (default
         :data:`TEXTURE`; 0: none).
+    fine : Fine, optional
+        Also match the picture's luminance on a grid twice as fine (see the module notes); the chords are
+        then judged there (``S2``, the gains on that grid).
     """
 
     def __init__(self, target, weight, board, colors, pin_xy, width_px, *, nominal=0.2, lightness=LIGHTNESS,
-                 samples=1.0, texture=None):
+                 samples=1.0, texture=None, fine=None):
         texture = TEXTURE if texture is None else float(texture)
         self._args = (target, weight, board, colors, pin_xy, width_px)
-        self._kw = dict(nominal=nominal, lightness=lightness, samples=samples, texture=texture)
+        self._kw = dict(nominal=nominal, lightness=lightness, samples=samples, texture=texture, fine=fine)
         self.texture = texture
         self.m = int(round(np.sqrt(len(target))))
         self.n = self.m * self.m
@@ -142,6 +192,7 @@ class Piece:
         self.nominal = float(nominal)
         self.pin_xy = np.asarray(pin_xy, dtype=np.float64)
         f = fine_per_pixel(width_px, samples=samples)
+        f += f % 2 if fine is not None else 0          # the fine grid's cells: f / 2 samples a side
         self.stamp = UnionStamp(self.m, f, width_px)
         self.top = np.zeros(self.stamp.F * self.stamp.F, dtype=np.uint8)  # 0 board, k + 1 colour k
         self.palette = np.vstack([self.board[None], self.colors])         # by sample value
@@ -155,6 +206,18 @@ class Piece:
         self._mark = np.zeros(self.n, dtype=np.int64)
         # per colour and pixel, the error's change per unit of thread share (weighted)
         self.S = np.zeros((self.K, self.n), dtype=np.float32)
+        self.fine = fine
+        if fine is not None:
+            self.m2, self.h = 2 * self.m, f // 2
+            self.u_fine = np.empty((self.m2 * self.m2, 3))              # each cell's colour (linear RGB)
+            self.u_fine[:] = self.board
+            self._mark2 = np.zeros(self.m2 * self.m2, dtype=np.int64)
+            self.S2 = np.zeros((self.K, self.m2 * self.m2), dtype=np.float32)
+            self.F2 = np.zeros_like(self.S2)                              # its fine part
+            r, c = np.divmod(np.arange(self.n), self.m)
+            self._kids = ((2 * r[:, None] + np.array([0, 0, 1, 1])) * self.m2    # each pixel's 4 cells
+                          + 2 * c[:, None] + np.array([0, 1, 0, 1]))
+            self._refresh_fine(np.arange(self.m2 * self.m2))
         for lo in range(0, self.n, 65536):
             self.refresh(np.arange(lo, min(lo + 65536, self.n)))
 
@@ -177,6 +240,21 @@ class Piece:
             e[0] += self.texture * (y2 - y1 * y1)
             e[1:] += self.texture * (k2 - k1 * k1)
         self.S[:, p] = (e[1:] - e[0]) * (self.weight[p] / self.nominal)
+        if self.fine is not None:       # the cells of pixels p: their fine part plus a quarter of the pixel's S
+            q = self._kids[p].ravel()
+            self.S2[:, q] = self.F2[:, q] + np.repeat(self.S[:, p], 4, axis=1) * 0.25
+
+    def _refresh_fine(self, q):
+        """``F2`` at cells ``q``: the fine luminance's change for a typical thread of each colour, per unit of
+        share (a chord crosses twice as many cells as pixels, each with twice the share: the cells' ``S2``
+        adds a quarter of their pixel's ``S``, :meth:`refresh`)."""
+        fine, u = self.fine, self.u_fine[q]
+        pts = np.empty((self.K + 1, len(q), 3))
+        pts[0] = u
+        pts[1:] = u + fine.nominal * (self.colors[:, None, :] - u)
+        d = _gray(pts) - fine.gray[q]
+        e = d * d
+        self.F2[:, q] = (e[1:] - e[0]) * (fine.weight[q] / fine.nominal)
 
     def lay(self, k, a, b):
         """Lay a thread of colour ``k`` from pin ``a`` to pin ``b`` on top; returns the pixels it changed."""
@@ -194,11 +272,21 @@ class Piece:
         self.u[cells] += moved @ (self.colors[k] - self.palette)   # what each sample changed
         self.y1[cells] += moved @ (self.lum[k + 1] - self.lum)
         self.y2[cells] += moved @ (self.lum[k + 1] ** 2 - self.lum ** 2)
+        if self.fine is not None:
+            F, h = self.stamp.F, self.h
+            q, inv = unique((samples // (F * h)) * self.m2 + (samples % F) // h, self._mark2)
+            lost = np.bincount(inv * kinds + old, minlength=len(q) * kinds).reshape(len(q), kinds)
+            self.u_fine[q] += (lost * (1.0 / (h * h))) @ (self.colors[k] - self.palette)
+            self._refresh_fine(q)
         self.refresh(cells)
         return cells
 
     def error(self):
-        """Sum over pixels of the weighted squared CIELAB difference (and texture, :data:`TEXTURE`)."""
+        """Sum over pixels of the weighted squared CIELAB difference (and texture, :data:`TEXTURE`; and over
+        the fine cells, :class:`Fine`)."""
         d = lab(self.u) - self.target_lab
         e = (d * d) @ self.metric + self.texture * (self.y2 - self.y1 * self.y1)
-        return float((self.weight * e).sum())
+        out = float((self.weight * e).sum())
+        if self.fine is not None:
+            out += float((self.fine.weight * (_gray(self.u_fine) - self.fine.gray) ** 2).sum())
+        return out

@@ -39,7 +39,9 @@ log = logging.getLogger(__name__)
 
 __all__ = ["Runner", "free_runs", "fit_schedule", "follow", "plan_runs", "RUN_DEFAULTS"]
 
-RUN_DEFAULTS = {"spool_changes": 8, "min_run": 100, "min_loop": 3}
+#: ``late``: the darkest thread's runs that start in the last this share of the lines join its run before
+#: (:func:`fit_schedule`)
+RUN_DEFAULTS = {"spool_changes": 8, "min_run": 100, "min_loop": 3, "late": 0.7}
 #: chords spanning fewer than ``pins // SHORT`` pins are never laid (10 of 300: the rim's dense short chords;
 #: coffee's plain luminance SSIM 0.349 -> 0.360 at Prem-Dharshan's line count, the colour error alike)
 SHORT = 30
@@ -107,11 +109,14 @@ class Runner:
         Updated in place.
     min_loop : int
         A thread never goes back to its last ``min_loop`` pins.
+    fine : (indptr, indices, weights), optional
+        The chords on the piece's fine grid (a piece with :class:`~.model.Fine`): the steps judge them
+        there, by ``piece.S2``.
     """
 
-    def __init__(self, space, indptr, indices, weights, piece, *, min_loop=RUN_DEFAULTS["min_loop"]):
+    def __init__(self, space, indptr, indices, weights, piece, *, min_loop=RUN_DEFAULTS["min_loop"], fine=None):
         self.space, self.piece, self.min_loop = space, piece, int(min_loop)
-        self.fans = _Fans(space, indptr, indices, weights)
+        self.fans = _Fans(space, indptr, indices, weights) if fine is None else _Fans(space, *fine)
         self.everywhere = _Everywhere(indptr, indices, weights)
         self.laid = np.zeros((piece.K, space.m), dtype=bool)   # a chord is laid once in a colour
         self.laid |= space.span < space.pins // SHORT
@@ -134,7 +139,8 @@ class Runner:
     def step(self, k, seq):
         """``(gain, next pin, chord)``: colour ``k``'s best chord from the end of ``seq``."""
         others, chords, pix, starts, w = self.fans.get(seq[-1])
-        gain = w * np.add.reduceat(self.piece.S[k].take(pix), starts)
+        S = self.piece.S if self.piece.fine is None else self.piece.S2      # judged on the fine grid if any
+        gain = w * np.add.reduceat(S[k].take(pix), starts)
         gain[self.laid[k, chords]] = np.inf
         for q in seq[-self.min_loop:]:
             i = int(np.searchsorted(others, q))
@@ -190,7 +196,7 @@ def free_runs(runner, lines, *, min_run=RUN_DEFAULTS["min_run"]):
     return runs
 
 
-def fit_schedule(runs, most, *, darkest=None):
+def fit_schedule(runs, most, *, darkest=None, late=0.0):
     """The draft's runs ``[(colour, pins)]`` merged down to at most ``most`` runs: ``[(colour, lines)]``.
 
     The shortest run goes first, its lines to the nearest run of its colour; a
@@ -198,7 +204,11 @@ def fit_schedule(runs, most, *, darkest=None):
     the schedule does not end with colour ``darkest`` (the thread of most
     contrast with the board) while it has a run before: its last run's lines
     go to that run (the last run lies on top of all; a dark one there is the
-    plan's most visible texture).
+    plan's most visible texture).  Before that, ``darkest``'s runs that start
+    in the last ``late`` share of the lines join its last run before them
+    (0: none): the dark thread's detail lies under the others' late runs
+    rather than coming back over them (the plain luminance SSIM with 8 and 32
+    changes, docs/planner.md, "Colour").
     """
     sched = _tidy([[k, len(seq) - 1] for k, seq in runs])
     while len(sched) > most:
@@ -210,6 +220,16 @@ def fit_schedule(runs, most, *, darkest=None):
         if same:
             sched[min(same, key=lambda j: (abs(j - i), j))][1] += n
         del sched[i]
+        sched = _tidy(sched)
+    if darkest is not None and late > 0:        # the darkest's runs in the last ``late`` of the lines join back
+        starts = np.cumsum([0] + [n for _, n in sched])
+        before = None
+        for run, at in zip(sched, starts):
+            if run[0] == darkest and at < (1.0 - late) * starts[-1]:
+                before = run
+            elif run[0] == darkest and before is not None:
+                before[1] += run[1]
+                run[1] = 0
         sched = _tidy(sched)
     while sched and sched[-1][0] == darkest and sum(k == darkest for k, _ in sched) > 1:
         k, n = sched.pop()
@@ -252,7 +272,7 @@ def follow(runner, lines, schedule, *, first=None):
 
 
 def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"], min_run=RUN_DEFAULTS["min_run"],
-              first=None, thicker=1.0):
+              first=None, thicker=1.0, late=RUN_DEFAULTS["late"]):
     """Lay up to ``lines`` threads in at most ``spool_changes + 1`` runs (see the module notes).
 
     Parameters
@@ -271,6 +291,8 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
         The first run's first pin (None: where its best chord is).
     thicker : float
         The draft's thread is this many times the plan's: it lays ``lines / thicker`` chords.
+    late : float
+        The darkest thread's runs in the last this share of the lines join its run before (:func:`fit_schedule`).
 
     Returns
     -------
@@ -284,7 +306,7 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
     if final is None and first is None and len(runs) <= spool_changes + 1:
         return runs
     lum = draft.piece.lum                   # the board's luminance, then each thread's
-    schedule = fit_schedule(runs, spool_changes + 1, darkest=int(np.argmax(np.abs(lum[1:] - lum[0]))))
+    schedule = fit_schedule(runs, spool_changes + 1, darkest=int(np.argmax(np.abs(lum[1:] - lum[0]))), late=late)
     total = sum(n for _, n in schedule)
     if total:
         schedule = [(k, max(1, int(round(n * lines / total)))) for k, n in schedule]
