@@ -218,7 +218,7 @@ def test_polish_on_the_command_line(tmp_path):
     assert "expected 0..1000000 pins" in run("plan", img, "-o", out, "--polish", "-3", "--force")[1]
     # a knob of the default method given to another: refused, not ignored
     code, err = run("plan", img, "-o", out, "--method", "greedy", "--polish", "5", "--force")
-    assert code == 2 and err.strip() == ("stringbot: error: --polish is a knob of --method residual only "
+    assert code == 2 and err.strip() == ("stringbot: error: --polish is a knob of --method residual or euler only "
                                          "(not of greedy); leave it out")
     assert out.read_bytes() == before
 

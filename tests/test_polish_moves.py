@@ -126,6 +126,6 @@ def test_polish_passes_on_the_command_line(tmp_path):
     code, err = run("--polish-passes", "2", "--lines", "200", "--force")
     assert code == 2 and len(err.splitlines()) == 1 and "the polish, which is off here" in err, err
     code, err = run("--polish-passes", "2", "--method", "greedy", "--force")
-    assert code == 2 and err == ("stringbot: error: --polish-passes is a knob of --method residual only "
+    assert code == 2 and err == ("stringbot: error: --polish-passes is a knob of --method residual or euler only "
                                  "(not of greedy); leave it out")
     assert out.read_bytes() == before

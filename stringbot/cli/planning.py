@@ -52,11 +52,11 @@ class _Lines(click.ParamType):
                    "more; --face alone: on (refuses a picture without a face); auto: when a face is found, else as off.")
 @click.option("--start-pin", type=int, default=None,
               help="First pin (0 is at the top, numbered clockwise) [default: residual: an end of its best chord; "
-                   "fitness: 0; greedy: pins / 4, ThreadTone's].")
+                   "euler: an end of its thread; fitness: 0; greedy: pins / 4, ThreadTone's].")
 @click.option("--size", type=int, default=None, help="Working size in pixels [default: 401; greedy: 1001, ThreadTone's].")
 @click.option("--lines", type=_Lines(), default="auto", show_default=True,
               help="Chords to draw; auto: residual stops when another thread would not improve the picture as "
-                   "woven; fitness and greedy: 500 + 10 (255 - mean gray).")
+                   "woven (euler: as many as its relaxed optimum gives); fitness and greedy: 500 + 10 (255 - mean gray).")
 @click.option("--importance", type=click.Path(path_type=str), default=None,
               help="Mask PNG of the picture's size: white = important (weight 2).")
 @click.option("--gray", type=click.Choice(["decolor", "luminance"]), default=None,
@@ -76,11 +76,11 @@ class _Lines(click.ParamType):
 @click.option("--refine", type=int, default=None,
               help="Residual: pins the pixel refinement revisits (0: none) [default: 300, or 0 when polishing].")
 @click.option("--polish", type=int, default=None,
-              help="Residual: pins the as-woven polish revisits: each change judged by the piece as woven, seen "
+              help="Residual and euler: pins the as-woven polish revisits: each change judged by the piece as woven, seen "
                    "from a step away (0: none) [default: 1000 with --lines auto, 0 with a line count].")
 @click.option("--polish-passes", "polish_passes", type=int, default=None, metavar="N",
-              help="Residual: N passes of inserted and deleted pins after the polish, each kept only if the piece "
-                   "as woven gets better: slower, a little better (0..20; 0: none) [default: 0].")
+              help="Residual and euler: N passes of inserted and deleted pins after the polish, each kept only if the piece "
+                   "as woven gets better: slower, a little better (0..20; 0: none) [default: 0; euler: 1 with --lines auto].")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")

@@ -91,15 +91,16 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
         Residual only: pins the pixel refinement revisits (0: none); None:
         300 when there is no polish, else 0 (the polish does it better).
     polish : int or None
-        Residual only: pins the as-woven polish revisits
+        Residual and euler: pins the as-woven polish revisits
         (:mod:`stringbot.planner.methods.polish`; 0: none); None: 1000 with
         ``lines="auto"``, 0 with a line count (the paper's SSIM at a given
         line count rewards the pixel-level drawing, which the polish trades
         for the piece as seen).
     polish_passes : int or None
-        Residual only: passes of inserts and deletes after the polish
+        Residual and euler: passes of inserts and deletes after the polish
         (:func:`~stringbot.planner.methods.polish.move_passes`; slower, a
-        little better); None or 0: none.
+        little better); 0: none; None: the method's (euler: 1 with
+        ``lines="auto"``; else none).
     preview : int or None
         The side of the drawing as woven the caller will make
         (:func:`~stringbot.planner.model.render.draw_woven`, black on white): a

@@ -164,7 +164,7 @@ def settle(*, pins, frame, size, crop, lines, start_pin, method, disconnected, g
     from .methods.polish import MAX_PASSES
 
     if polish_passes is None:
-        polish_passes = 0
+        polish_passes = how.polish_passes if polish and lines == "auto" else 0
     if not (isinstance(polish_passes, int) and not isinstance(polish_passes, bool) and 0 <= polish_passes <= MAX_PASSES):
         raise BadInput(f"--polish-passes {polish_passes}; expected 0..{MAX_PASSES} passes")
     if polish_passes and not polish:

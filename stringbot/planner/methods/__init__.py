@@ -18,8 +18,8 @@ drawings it made meanwhile).
 
 The methods: :mod:`.residual` (the default, with :mod:`.canvas`, :mod:`.refine`,
 :mod:`.polish`, :mod:`.woven`, :mod:`.woven_helper` and :mod:`.eye`),
-:mod:`.fitness` (the paper's, with :mod:`.sampling`) and :mod:`.greedy`
-(ThreadTone's).
+:mod:`.euler` (a chord set made one thread, then the same polish), :mod:`.fitness` (the paper's, with
+:mod:`.sampling`) and :mod:`.greedy` (ThreadTone's).
 """
 
 from dataclasses import dataclass, field
@@ -70,6 +70,9 @@ class Method:
     stops_itself : bool
         With ``--lines auto`` it decides when to stop; else it draws ``500 + 10 (255 - mean
         gray)`` lines (the paper's section 3.3).
+    polish_passes : int
+        Its passes of inserts and deletes after the polish when ``--polish-passes`` is not given
+        (with ``--lines auto`` and the polish on; else none).
     """
 
     name: str
@@ -84,6 +87,7 @@ class Method:
     picks_start: bool = False
     crop: str = ""
     stops_itself: bool = False
+    polish_passes: int = 0
 
     def runner(self):
         """The run function (imported now: it may need numpy)."""
@@ -151,6 +155,9 @@ METHODS = {m.name: m for m in (
     Method("residual", "chords chosen by what the picture as woven still lacks, then refined",
            run="stringbot.planner.methods.residual:run", knobs=("refine", "polish"),
            gray="luminance", picks_start=True, stops_itself=True),  # the piece is seen by its luminance
+    Method("euler", "a chord set chosen with no thread to follow (relaxed densities), made one thread, then polished",
+           run="stringbot.planner.methods.euler:run", knobs=("polish",), gray="luminance",
+           picks_start=True, stops_itself=True, polish_passes=1),
     Method("fitness", "the paper's method", run="stringbot.planner.methods.fitness:run",
            knobs=("disconnected", "style", "beta", "gamma", "T")),
     Method("greedy", "ThreadTone as published", run="stringbot.planner.methods.greedy:plan_greedy",
