@@ -94,3 +94,13 @@ def test_the_plan_is_one_thread_the_winder_takes(tmp_path, lines):
     assert 45 <= len(seq) - 1 <= 50 if lines == 50 else len(seq) - 1 > 20
     assert p.stats["chords_chosen"] > 0 and p.stats["polish"]["tried"] > 0
 
+
+
+@pytest.mark.parametrize("method", ["euler", "greedy", "fitness"])
+def test_refine_is_refused_where_there_is_no_pixel_refinement(tmp_path, method):
+    """``--refine`` belongs to the residual method alone; euler and the others refuse it, not ignore it."""
+    from stringbot.errors import BadInput
+
+    with pytest.raises(BadInput, match=rf"--refine works with --method residual only; {method} has no"):
+        plan_picture(tmp_path / "never-read.png", method=method, pins=60, size=101, refine=10)
+    assert list(tmp_path.iterdir()) == []

@@ -150,6 +150,9 @@ def settle(*, pins, frame, size, crop, lines, start_pin, method, disconnected, g
                        f"{method} has none of them")
     if fit and crop is not None:
         raise BadInput("--fit and --crop both choose the part of the picture to paint; give one of them")
+    if refine is not None and "refine" not in how.knobs:
+        raise BadInput(f"--refine works with --method {' or '.join(methods_taking('refine'))} only; "
+                       f"{method} has no pixel refinement")
     if "polish" not in how.knobs and any(v is not None for v in (refine, polish, polish_passes)):
         _only_for("polish", " and ".join(f"--{n}" for n, v in (("refine", refine), ("polish", polish),
                                                                 ("polish-passes", polish_passes)) if v is not None),
