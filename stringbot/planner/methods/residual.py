@@ -294,21 +294,22 @@ def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=FACE_P
     extra weight, 0 away from it): a change is kept only where the frame's error drops and the face's
     does not rise (:class:`~.polish.Guarded`), so the frame wins back some of what weighing the face cost
     it and the face keeps what it gained.  ``(seq, stats)`` as :func:`~.polish.polish_plan`."""
+    from .eye import EyeError
     from .polish import Guarded, polish_plan
+    from .woven import EYE_SIGMA
 
-    chords = list(zip(seq[:-1], seq[1:]))
-    lead, guard = woven_canvas(target, frame_w, space, model), woven_canvas(target, w - frame_w, space, model)
-    lead.build(chords)
-    guard.build(chords)
+    lead = woven_canvas(target, frame_w, space, model)
+    lead.build(list(zip(seq[:-1], seq[1:])))
+    guard = EyeError(*_on_grid(target, w - frame_w, space), sigma=EYE_SIGMA * lead.size)  # the lead's D
+    guard.reset(lead.D)
     return polish_plan(Guarded(lead, guard), seq, space, budget=budget, passes=passes)
 
 
-def woven_canvas(target, w, space, model):
-    """The polish's canvas for a picture at the working size: the error on a grid of
-    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there)."""
+def _on_grid(target, w, space):
+    """The target and the weights on the polish's grid (:func:`woven_canvas`), 0 outside the frame."""
     from ..model.chords import frame_mask
     from ..picture.resample import resize_square
-    from .woven import GRID, WovenCanvas
+    from .woven import GRID
 
     size = target.shape[0]
     m = min(GRID, size)
@@ -316,4 +317,13 @@ def woven_canvas(target, w, space, model):
         target = resize_square(target, m)
         w = resize_square(w, m)
     inside = frame_mask(m, space.frame)
-    return WovenCanvas(np.where(inside, target, 0.0), np.where(inside, w, 0.0), space.pin_xy, model.width_px(m))
+    return np.where(inside, target, 0.0), np.where(inside, w, 0.0)
+
+
+def woven_canvas(target, w, space, model):
+    """The polish's canvas for a picture at the working size: the error on a grid of
+    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there)."""
+    from .woven import WovenCanvas
+
+    t, w = _on_grid(target, w, space)
+    return WovenCanvas(t, w, space.pin_xy, model.width_px(t.shape[0]))
