@@ -53,7 +53,7 @@ from .canvas import Canvas, fresh
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "PATIENCE",
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "CHOOSE_FACE", "PATIENCE",
            "EYE_SHARE", "EYE_FIRST", "LENGTH_POWER", "SHARPEN"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
@@ -79,6 +79,10 @@ SHARPEN = (1.5, 0.015)
 #: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
 #: 0.1-0.2 s less, as-woven error within 1 % (docs/planner.md, "Speed").
 CHOOSE_POINTS, CHOOSE_POINTS_POLISHED = 400, 200
+#: ``--face``: the share of the face's extra weight the chooser and its stop see (the polishes see all of
+#: it): a chord chosen for the face's sake darkens the rest of the frame along its length, a polish's move
+#: is judged where it is (docs/planner.md, "Faces")
+CHOOSE_FACE = 0.5
 #: ``--face``: passes of inserts and deletes in the second polish, the one the frame's error leads and the
 #: face's own error guards (:func:`frame_polish`; docs/planner.md, "Faces")
 FACE_PASSES = 3
@@ -225,7 +229,10 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     # the threads are chosen against the picture sharpened (see SHARPEN), judged by the eye against itself
     amount, sigma = SHARPEN
     sharp = np.where(mask, unsharp(1.0 - pic.gray / 255.0, amount=amount, sigma=sigma * size), 0.0)
-    canvas = Canvas(sharp, w, space.pin_xy, model.width_px(size), eye=lines == "auto", eye_target=target)
+    # --face: the chooser (and its stop) sees a share of the face's extra weight, the polishes all of it
+    chosen_w = w if frame_weights is None else \
+        np.where(mask, frame_weights + CHOOSE_FACE * (w - frame_weights), 0.0)
+    canvas = Canvas(sharp, chosen_w, space.pin_xy, model.width_px(size), eye=lines == "auto", eye_target=target)
     # points about every 1/400 of the frame along each chord (at 801 px every other pixel: the mean
     # residual along a chord needs no more, and this halves the work of large sizes); every 1/200 for
     # a plan to be polished (see CHOOSE_POINTS_POLISHED)
