@@ -227,3 +227,24 @@ def test_an_auto_plan_with_a_face_polishes_the_frame_after(tmp_path, astronaut):
     fp = p.stats["frame_polish"]
     assert fp["passes"] == 3 and fp["woven_rms"] < fp["woven_rms_before"]  # the frame's error, lower
     assert "frame_polish" not in plan_picture(img, pins=60, size=101, face="off").stats
+
+
+def test_the_chooser_sees_half_the_face_weight_the_polish_sees_all(tmp_path, astronaut, monkeypatch):
+    """--face, mono: the chooser's (and its stop's) weights carry CHOOSE_FACE of the face's extra weight,
+    the polishes' all of it; without --face the chooser's weights are the plan's."""
+    from stringbot.planner.methods import residual
+    from stringbot.planner.picture.face import FACE_WEIGHT
+
+    seen, canvas = [], residual.Canvas
+
+    def spy(target, w, *a, **kw):
+        seen.append(float(np.max(w)))
+        return canvas(target, w, *a, **kw)
+
+    monkeypatch.setattr(residual, "Canvas", spy)
+    img = small(astronaut, tmp_path, 160)
+    plan_picture(img, pins=60, size=101, lines=200, face="on")
+    assert seen[-1] == pytest.approx(1.0 + residual.CHOOSE_FACE * FACE_WEIGHT, rel=1e-3)
+    assert residual.CHOOSE_FACE < 1.0
+    plan_picture(img, pins=60, size=101, lines=200, face="off")
+    assert seen[-1] == pytest.approx(1.0)

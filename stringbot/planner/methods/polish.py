@@ -52,14 +52,17 @@ MAX_PASSES = 20
 
 
 class Guarded:
-    """Two canvases holding the same drawing, polished as one (:func:`polish_plan`, one process): the
+    """A drawing polished by one error and guarded by another (:func:`polish_plan`, one process): the
     moves are chosen and judged by ``lead``'s error, and a change is kept only where ``guard``'s error
     does not rise either (``--face``: the frame's error leads, the face's own error guards).
 
     Parameters
     ----------
-    lead, guard : WovenCanvas
-        Both with the same chords drawn; kept in step.
+    lead : WovenCanvas
+        Holds the drawing.
+    guard : EyeError
+        Another error of the same drawing on the same grid (its ``D`` the lead's): kept in step with
+        the change of ``D`` each of the lead's changes makes, with no fine canvas of its own.
     """
 
     def __init__(self, lead, guard):
@@ -70,8 +73,13 @@ class Guarded:
 
     def apply(self, chords_out=(), chords_in=()):
         """The change on both; the lead's change of error, or a rise (so it is undone) where the guard's rose."""
-        d = self.lead.apply(chords_out=chords_out, chords_in=chords_in)
-        g = self.guard.apply(chords_out=chords_out, chords_in=chords_in)
+        d, cp, dD = self.lead.apply_change(chords_out=chords_out, chords_in=chords_in)
+        g = 0.0
+        if cp is not None:
+            if self.guard.s[cp].any():
+                g = self.guard.take(cp, dD)
+            else:  # where the guard weighs nothing its error and slope do not change
+                self.guard.D[cp] += dD
         return d if g <= 0.0 else abs(d) + g
 
 

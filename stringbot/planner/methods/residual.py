@@ -53,7 +53,7 @@ from .canvas import Canvas, fresh
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "PATIENCE",
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "CHOOSE_FACE", "PATIENCE",
            "EYE_SHARE", "EYE_FIRST", "LENGTH_POWER", "SHARPEN"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
@@ -79,6 +79,10 @@ SHARPEN = (1.5, 0.015)
 #: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
 #: 0.1-0.2 s less, as-woven error within 1 % (docs/planner.md, "Speed").
 CHOOSE_POINTS, CHOOSE_POINTS_POLISHED = 400, 200
+#: ``--face``: the share of the face's extra weight the chooser and its stop see (the polishes see all of
+#: it): a chord chosen for the face's sake darkens the rest of the frame along its length, a polish's move
+#: is judged where it is (docs/planner.md, "Faces")
+CHOOSE_FACE = 0.5
 #: ``--face``: passes of inserts and deletes in the second polish, the one the frame's error leads and the
 #: face's own error guards (:func:`frame_polish`; docs/planner.md, "Faces")
 FACE_PASSES = 3
@@ -232,7 +236,10 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     # the threads are chosen against the picture sharpened (see SHARPEN), judged by the eye against itself
     amount, sigma = SHARPEN
     sharp = np.where(mask, unsharp(1.0 - pic.gray / 255.0, amount=amount, sigma=sigma * size), 0.0)
-    canvas = Canvas(sharp, w, space.pin_xy, model.width_px(size), eye=lines == "auto", eye_target=target)
+    # --face: the chooser (and its stop) sees a share of the face's extra weight, the polishes all of it
+    chosen_w = w if frame_weights is None else \
+        np.where(mask, frame_weights + CHOOSE_FACE * (w - frame_weights), 0.0)
+    canvas = Canvas(sharp, chosen_w, space.pin_xy, model.width_px(size), eye=lines == "auto", eye_target=target)
     # points about every 1/400 of the frame along each chord (at 801 px every other pixel: the mean
     # residual along a chord needs no more, and this halves the work of large sizes); every 1/200 for
     # a plan to be polished (see CHOOSE_POINTS_POLISHED)
@@ -309,21 +316,22 @@ def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=FACE_P
     extra weight, 0 away from it): a change is kept only where the frame's error drops and the face's
     does not rise (:class:`~.polish.Guarded`), so the frame wins back some of what weighing the face cost
     it and the face keeps what it gained.  ``(seq, stats)`` as :func:`~.polish.polish_plan`."""
+    from .eye import EyeError
     from .polish import Guarded, polish_plan
+    from .woven import EYE_SIGMA
 
-    chords = list(zip(seq[:-1], seq[1:]))
-    lead, guard = woven_canvas(target, frame_w, space, model), woven_canvas(target, w - frame_w, space, model)
-    lead.build(chords)
-    guard.build(chords)
+    lead = woven_canvas(target, frame_w, space, model)
+    lead.build(list(zip(seq[:-1], seq[1:])))
+    guard = EyeError(*_on_grid(target, w - frame_w, space), sigma=EYE_SIGMA * lead.size)  # the lead's D
+    guard.reset(lead.D)
     return polish_plan(Guarded(lead, guard), seq, space, budget=budget, passes=passes)
 
 
-def woven_canvas(target, w, space, model):
-    """The polish's canvas for a picture at the working size: the error on a grid of
-    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there)."""
+def _on_grid(target, w, space):
+    """The target and the weights on the polish's grid (:func:`woven_canvas`), 0 outside the frame."""
     from ..model.chords import frame_mask
     from ..picture.resample import resize_square
-    from .woven import GRID, WovenCanvas
+    from .woven import GRID
 
     size = target.shape[0]
     m = min(GRID, size)
@@ -331,4 +339,13 @@ def woven_canvas(target, w, space, model):
         target = resize_square(target, m)
         w = resize_square(w, m)
     inside = frame_mask(m, space.frame)
-    return WovenCanvas(np.where(inside, target, 0.0), np.where(inside, w, 0.0), space.pin_xy, model.width_px(m))
+    return np.where(inside, target, 0.0), np.where(inside, w, 0.0)
+
+
+def woven_canvas(target, w, space, model):
+    """The polish's canvas for a picture at the working size: the error on a grid of
+    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there)."""
+    from .woven import WovenCanvas
+
+    t, w = _on_grid(target, w, space)
+    return WovenCanvas(t, w, space.pin_xy, model.width_px(t.shape[0]))

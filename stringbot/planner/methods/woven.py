@@ -199,17 +199,23 @@ class WovenCanvas(EyeError):
 
     def apply(self, chords_out=(), chords_in=()):
         """Remove ``chords_out`` and add ``chords_in``; returns the exact change of ``E``."""
+        return self.apply_change(chords_out, chords_in)[0]
+
+    def apply_change(self, chords_out=(), chords_in=()):
+        """:meth:`apply`, and the change of the drawing it made: ``(dE, cp, dD)`` (``cp`` the grid pixels
+        whose ``D`` changed by ``dD``; None, None where nothing did), for another error of the same drawing
+        (:class:`~stringbot.planner.methods.polish.Guarded`)."""
         self._count(chords_out, chords_in)
         cp, dD = self._fine(chords_out, chords_in, "keep")
         if cp is None:
-            return 0.0
+            return 0.0, None, None
         dE, v, h = self.change(cp, dD, blur2=True)
         self.G -= h
         self.D[cp] += dD
         self.u[self.pidx[cp]] = self.s[cp] * (1.0 - self.D[cp])
         np.multiply(self.u, self.G, out=self.g)  # the same as where h is not 0, and cheaper than finding it
         self.E += dE
-        return dE
+        return dE, cp, dD
 
     def _count(self, chords_out, chords_in):
         """Keep :attr:`uses` (how many times each chord is drawn) in step with a change."""
