@@ -200,6 +200,24 @@ def test_a_colour_plan_with_face_records_it_weighs_it_and_scores_it(tmp_path, as
     assert f_on["ssim_face_blurred"] > f_off["ssim_face_blurred"]
 
 
+def test_a_colour_plan_with_face_drafts_its_schedule_without_the_face_weights(tmp_path, astronaut, monkeypatch):
+    # the draft (the colours' order and shares) weighs the frame alone; the plan weighs the face more
+    from stringbot.planner.colour import runs
+    from stringbot.planner.colour.build import plan_colour
+
+    seen, real = {}, runs.plan_runs
+
+    def spy(draft, final, lines, **kw):
+        seen["draft"] = draft.piece.weight.copy()
+        return real(draft, lambda: seen.setdefault("plan", final()), lines, **kw)
+
+    monkeypatch.setattr(runs, "plan_runs", spy)
+    plan_colour(small(astronaut, tmp_path, 160), colors=["#000000", "#ee7623"], pins=120, size=128, lines=300,
+                face="on")
+    assert seen["draft"].max() == 1.0 and set(np.unique(seen["draft"])) <= {0.0, 1.0}
+    assert seen["plan"].piece.weight.max() > 2.0
+
+
 def test_face_takes_auto_on_or_off(tmp_path, astronaut):
     code, _, err = run("plan", small(astronaut, tmp_path), "-o", tmp_path / "c.json", *SMALL, "--face", "maybe")
     assert code == 2 and "maybe" in err

@@ -133,6 +133,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         if found is not None and crop is None:
             crop = crop_on_face(path, found)
     pic = picture or read_picture(path, size=size, crop=crop, gray="luminance", rng=rng)
+    plain = weight              # the draft's weights: without the face's (the colours' order and shares by the frame)
     if found is not None:       # --face: the face weighs more (times any weight given)
         from ..picture.face import face_weights
 
@@ -155,7 +156,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     report("chords")
     board, lin = to_linear(hex_to_rgb(background)), linear_colors(colors)
 
-    def weights_at(grid):
+    def weights_at(grid, weight):
         """The pixel weights on a ``grid``-px grid: the frame, times ``weight`` if given."""
         w = frame_mask(grid, frame).astype(np.float64)
         if weight is not None:
@@ -163,8 +164,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
                      resize_square(np.asarray(weight, dtype=np.float64), grid))
         return w
 
-    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None, fine=0.0):
-        """A :class:`Runner` on a ``grid``-px working grid (the picture ``rgb`` read at that size)."""
+    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None, fine=0.0, weight=weight):
+        """A :class:`Runner` on a ``grid``-px working grid (the picture ``rgb`` read at that size, ``weight``
+        the pixel weights: the face's too by default)."""
         indptr, indices = chord_pixels(space, grid, cache=cache)
         weights = chord_weights_px(space, grid, model.width_px(grid) * thicker)
         chords2 = fine_grid = None
@@ -175,8 +177,8 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
             rgb2 = read_picture(path, size=two, crop=pic.crop, gray="luminance").rgb if picture is None else \
                 np.stack([resize_square(pic.rgb[..., c], two) for c in range(3)], axis=-1)
             fine_grid = Fine(rgb2.reshape(-1, 3) @ np.asarray(LUMINANCE, dtype=np.float64),
-                             (weights_at(two) * fine).ravel(), float(np.median(chords2[2])))
-        piece = Piece(to_linear(rgb.reshape(-1, 3)), weights_at(grid).ravel(), board, lin, space.pin_xy,
+                             (weights_at(two, weight) * fine).ravel(), float(np.median(chords2[2])))
+        piece = Piece(to_linear(rgb.reshape(-1, 3)), weights_at(grid, weight).ravel(), board, lin, space.pin_xy,
                       model.width_px(grid) * thicker, nominal=float(np.median(weights)), samples=samples,
                       texture=texture, fine=fine_grid)
         return Runner(space, indptr, indices, weights, piece, fine=chords2)
@@ -200,8 +202,10 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         runs = plan_runs(work, None, k, spool_changes=spool_changes, min_run=min_run, first=start_pin)
     else:
         rgb = np.stack([resize_square(target[..., c], grid) for c in range(3)], axis=-1)
-        # the draft orders the colours by their mean alone (the texture there changed the order, not the SSIM)
-        draft = runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER, texture=0.0)
+        # the draft orders the colours by their mean alone (the texture there changed the order, not the SSIM),
+        # and without the face's weights (--face: the schedule they gave cost the frame, Grace Hopper's blurred
+        # SSIM -0.034 -> +0.005 against the plan without --face; docs/planner.md, "Faces", "In colour")
+        draft = runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER, texture=0.0, weight=plain)
         runs = plan_runs(draft, lambda: work, k, spool_changes=spool_changes, thicker=DRAFT_THICKER,
                          min_run=min_run, first=start_pin)
     layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]
