@@ -46,14 +46,14 @@ import numpy as np
 
 from ...errors import BadInput
 from ..model.lines import PinLines
-from ..picture.resample import unsharp
+from ..picture.resample import gaussian_blur, unsharp
 from ..progress import report
 from . import Outcome
 from .canvas import Canvas, fresh
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "CHOOSE_FACE", "PATIENCE",
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "FACE_SHARPEN", "CHOOSE_FACE", "PATIENCE",
            "EYE_SHARE", "EYE_FIRST", "LENGTH_POWER", "SHARPEN"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
@@ -86,6 +86,9 @@ CHOOSE_FACE = 0.5
 #: ``--face``: passes of inserts and deletes in the second polish, the one the frame's error leads and the
 #: face's own error guards (:func:`frame_polish`; docs/planner.md, "Faces")
 FACE_PASSES = 3
+#: ``--face``: the chooser's target sharpened this much more over the face (the amount of :data:`SHARPEN`
+#: plus this times the face's extra weight over its largest): SSIM rewards the face's structure
+FACE_SHARPEN = 0.0
 
 
 def best_start(canvas, space, pin_lines):
@@ -224,7 +227,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
           frame_weights=None):
     """The residual choice under the thread model, then refinement and polish: ``(seq, stats, drawings)``;
     with ``frame_weights`` (``weights`` without the face's, ``--face``) then :func:`frame_polish`."""
-    from .polish import polish_plan
+    from .polish import UnthreadedWoven, polish_plan
     from .refine import refine_sequence
 
     size = pic.gray.shape[0]
@@ -235,7 +238,13 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
     # the threads are chosen against the picture sharpened (see SHARPEN), judged by the eye against itself
     amount, sigma = SHARPEN
-    sharp = np.where(mask, unsharp(1.0 - pic.gray / 255.0, amount=amount, sigma=sigma * size), 0.0)
+    dark = 1.0 - pic.gray / 255.0
+    if frame_weights is not None and FACE_SHARPEN:  # --face: the face sharpened more (FACE_SHARPEN)
+        amount = amount + FACE_SHARPEN * _face_share(w, frame_weights, mask)
+        sharp = np.clip(dark + amount * (dark - gaussian_blur(dark, sigma * size)), 0.0, 1.0)
+    else:
+        sharp = unsharp(dark, amount=amount, sigma=sigma * size)
+    sharp = np.where(mask, sharp, 0.0)
     # --face: the chooser (and its stop) sees a share of the face's extra weight, the polishes all of it
     chosen_w = w if frame_weights is None else \
         np.where(mask, frame_weights + CHOOSE_FACE * (w - frame_weights), 0.0)
@@ -246,6 +255,8 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     points = CHOOSE_POINTS_POLISHED if polish else CHOOSE_POINTS
     pin_lines = PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / points))
     helper = eye_lines = None
+    # --face: the polishes' estimates without BLAS's threads (UnthreadedWoven); other plans as they were
+    cls = None if frame_weights is None else UnthreadedWoven
     if polish:
         from .woven_helper import WovenHelper, two_cores
 
@@ -262,7 +273,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
                 eye_lines = eye_lines_for(canvas, space)
                 points = SharedPoints([pin_lines, eye_lines], [(0, p) for p in range(space.pins - 1, -1, -1)]
                                       + [(1, p) for p in range(space.pins)])
-            helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing,
+            helper = WovenHelper(lambda: woven_canvas(target, w, space, model, cls=cls), space, drawing=drawing,
                                  patience=PATIENCE, points=points)
     try:
         t = time.perf_counter()
@@ -293,7 +304,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         out["polish_processes"] = 1 if done is None else 2
         drawings = None if done is None else helper.drawing
         if done is None:
-            woven = woven_canvas(target, w, space, model)
+            woven = woven_canvas(target, w, space, model, cls=cls)
             woven.build(list(zip(seq[:-1], seq[1:])))
             done = polish_plan(woven, seq, space, budget=polish, passes=passes)
         seq, ps = done
@@ -310,6 +321,12 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
             helper.close()
 
 
+def _face_share(w, frame_w, mask):
+    """The face's extra weight over its largest, 0 .. 1 (0 away from the face and outside the frame)."""
+    extra = np.where(mask, np.asarray(w, np.float64) - frame_w, 0.0)
+    return extra / max(float(extra.max(initial=0.0)), 1e-12)
+
+
 def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=FACE_PASSES):
     """``--face``: after the face-weighted plan, a polish that the frame's error (``frame_w``: the weights
     without the face's) leads and the face's guards (the error weighed by ``w - frame_w``, the face's
@@ -317,10 +334,10 @@ def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=FACE_P
     does not rise (:class:`~.polish.Guarded`), so the frame wins back some of what weighing the face cost
     it and the face keeps what it gained.  ``(seq, stats)`` as :func:`~.polish.polish_plan`."""
     from .eye import EyeError
-    from .polish import Guarded, polish_plan
+    from .polish import Guarded, UnthreadedWoven, polish_plan
     from .woven import EYE_SIGMA
 
-    lead = woven_canvas(target, frame_w, space, model)
+    lead = woven_canvas(target, frame_w, space, model, cls=UnthreadedWoven)
     lead.build(list(zip(seq[:-1], seq[1:])))
     guard = EyeError(*_on_grid(target, w - frame_w, space), sigma=EYE_SIGMA * lead.size)  # the lead's D
     guard.reset(lead.D)
@@ -342,10 +359,11 @@ def _on_grid(target, w, space):
     return np.where(inside, target, 0.0), np.where(inside, w, 0.0)
 
 
-def woven_canvas(target, w, space, model):
+def woven_canvas(target, w, space, model, *, cls=None):
     """The polish's canvas for a picture at the working size: the error on a grid of
-    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there)."""
+    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there); ``cls``: a
+    subclass of :class:`~stringbot.planner.methods.woven.WovenCanvas` to make (None: that class)."""
     from .woven import WovenCanvas
 
     t, w = _on_grid(target, w, space)
-    return WovenCanvas(t, w, space.pin_xy, model.width_px(t.shape[0]))
+    return (cls or WovenCanvas)(t, w, space.pin_xy, model.width_px(t.shape[0]))
