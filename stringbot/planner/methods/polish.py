@@ -35,12 +35,13 @@ import logging
 import numpy as np
 
 from ..model.lines import PinLines
+from .eye import EyeError
 from .woven import WovenCanvas
 
 log = logging.getLogger(__name__)
 
 __all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "move_passes",
-           "Guarded", "UnthreadedWoven", "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES", "MAX_PASSES"]
+           "Guarded", "Unthreaded", "UnthreadedWoven", "UnthreadedEye", "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES", "MAX_PASSES"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
 POLISH_SPACING = 2.0
@@ -69,8 +70,16 @@ class Guarded:
     def __init__(self, lead, guard):
         self.lead, self.guard = lead, guard
 
-    def __getattr__(self, name):  # everything but apply is the lead's
+    def __getattr__(self, name):  # everything but helps and apply is the lead's
         return getattr(self.lead, name)
+
+    def helps(self, chords_out=(), chords_in=()):
+        """Whether the change lowers the lead's error by its estimate and does not raise the guard's by
+        its own (exact but where the chords overlap): a change the guard would undo is not made."""
+        cp, dD = self.lead._fine(chords_out, chords_in, "none")
+        if cp is None or self.lead.change(cp, dD, sign=True)[0] >= 0.0:
+            return False
+        return not self.guard.s[cp].any() or self.guard.change(cp, dD, sign=True)[0] <= 0.0
 
     def apply(self, chords_out=(), chords_in=()):
         """The change on both; the lead's change of error, or a rise (so it is undone) where the guard's rose."""
@@ -84,13 +93,13 @@ class Guarded:
         return d if g <= 0.0 else abs(d) + g
 
 
-class UnthreadedWoven(WovenCanvas):
-    """A :class:`~.woven.WovenCanvas` whose estimates (:meth:`helps`, :meth:`estimate`, :meth:`delta`) sum
-    their quadratic term without BLAS: :meth:`~.eye.EyeError.change` takes it as ``np.dot(b, b)`` over the
-    whole padded grid (about 70 000 values at 256 px), which OpenBLAS splits among its threads, and on a
-    machine busy with other work each call waits for them (measured: 30 times as long, loaded 6 times
-    over).  Here ``b`` is summed over the span of grid pixels the change blurs, by numpy's own loop: the
-    same value up to rounding.  ``--face``'s frame's polish (:func:`~.residual.frame_polish`) uses it."""
+class Unthreaded:
+    """An error (:class:`~.eye.EyeError`, :class:`~.woven.WovenCanvas`) whose estimates (``helps``,
+    ``estimate``, ``delta``) sum their quadratic term without BLAS: :meth:`~.eye.EyeError.change` takes it
+    as ``np.dot(b, b)`` over the whole padded grid (about 70 000 values at 256 px), which OpenBLAS splits
+    among its threads, and on a machine busy with other work each call waits for them (measured: 30 times
+    as long, the machine loaded 6 times over).  Here ``b`` is summed over the span of grid pixels the change
+    blurs, by numpy's own loop: the same value up to rounding.  ``--face``'s polishes use it."""
 
     def change(self, cp, dD, *, blur2=False, sign=False):
         if blur2:
@@ -104,6 +113,14 @@ class UnthreadedWoven(WovenCanvas):
         lo = int(idx.min())
         b = np.bincount(idx - lo, weights=(v[:, None] * self._kw1[None, :]).ravel())
         return float(lin + np.einsum("i,i->", b, b)), v, None
+
+
+class UnthreadedWoven(Unthreaded, WovenCanvas):
+    """A :class:`~.woven.WovenCanvas` with :class:`Unthreaded` estimates."""
+
+
+class UnthreadedEye(Unthreaded, EyeError):
+    """An :class:`~.eye.EyeError` with :class:`Unthreaded` estimates."""
 
 
 def polish_lines(space, canvas):

@@ -89,6 +89,9 @@ FACE_PASSES = 3
 #: ``--face``: the chooser's target sharpened this much more over the face (the amount of :data:`SHARPEN`
 #: plus this times the face's extra weight over its largest): SSIM rewards the face's structure
 FACE_SHARPEN = 0.0
+#: ``--face``: the polishes' target (the face-weighted one's, and the face's guard's) sharpened over the face
+#: by this times the face's share (0 elsewhere; :func:`_face_share`)
+FACE_SHARPEN_POLISH = 0.0
 
 
 def best_start(canvas, space, pin_lines):
@@ -245,6 +248,10 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     else:
         sharp = unsharp(dark, amount=amount, sigma=sigma * size)
     sharp = np.where(mask, sharp, 0.0)
+    face_target = target  # the face-weighted polishes' target
+    if frame_weights is not None and FACE_SHARPEN_POLISH:
+        a = FACE_SHARPEN_POLISH * _face_share(w, frame_weights, mask)
+        face_target = np.where(mask, np.clip(dark + a * (dark - gaussian_blur(dark, sigma * size)), 0.0, 1.0), 0.0)
     # --face: the chooser (and its stop) sees a share of the face's extra weight, the polishes all of it
     chosen_w = w if frame_weights is None else \
         np.where(mask, frame_weights + CHOOSE_FACE * (w - frame_weights), 0.0)
@@ -273,7 +280,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
                 eye_lines = eye_lines_for(canvas, space)
                 points = SharedPoints([pin_lines, eye_lines], [(0, p) for p in range(space.pins - 1, -1, -1)]
                                       + [(1, p) for p in range(space.pins)])
-            helper = WovenHelper(lambda: woven_canvas(target, w, space, model, cls=cls), space, drawing=drawing,
+            helper = WovenHelper(lambda: woven_canvas(face_target, w, space, model, cls=cls), space, drawing=drawing,
                                  patience=PATIENCE, points=points)
     try:
         t = time.perf_counter()
@@ -304,7 +311,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         out["polish_processes"] = 1 if done is None else 2
         drawings = None if done is None else helper.drawing
         if done is None:
-            woven = woven_canvas(target, w, space, model, cls=cls)
+            woven = woven_canvas(face_target, w, space, model, cls=cls)
             woven.build(list(zip(seq[:-1], seq[1:])))
             done = polish_plan(woven, seq, space, budget=polish, passes=passes)
         seq, ps = done
@@ -313,7 +320,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
             t = time.perf_counter()
             report("polishing the frame")
             seq, out["frame_polish"] = frame_polish(target, w, np.where(mask, frame_weights, 0.0), space, model, seq,
-                                                    budget=polish)
+                                                    budget=polish, face_target=face_target)
             out["frame_polish_seconds"] = round(time.perf_counter() - t, 3)
         return seq, out, drawings
     finally:
@@ -327,19 +334,19 @@ def _face_share(w, frame_w, mask):
     return extra / max(float(extra.max(initial=0.0)), 1e-12)
 
 
-def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=FACE_PASSES):
+def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=FACE_PASSES, face_target=None):
     """``--face``: after the face-weighted plan, a polish that the frame's error (``frame_w``: the weights
     without the face's) leads and the face's guards (the error weighed by ``w - frame_w``, the face's
     extra weight, 0 away from it): a change is kept only where the frame's error drops and the face's
     does not rise (:class:`~.polish.Guarded`), so the frame wins back some of what weighing the face cost
     it and the face keeps what it gained.  ``(seq, stats)`` as :func:`~.polish.polish_plan`."""
-    from .eye import EyeError
-    from .polish import Guarded, UnthreadedWoven, polish_plan
+    from .polish import Guarded, UnthreadedEye, UnthreadedWoven, polish_plan
     from .woven import EYE_SIGMA
 
     lead = woven_canvas(target, frame_w, space, model, cls=UnthreadedWoven)
     lead.build(list(zip(seq[:-1], seq[1:])))
-    guard = EyeError(*_on_grid(target, w - frame_w, space), sigma=EYE_SIGMA * lead.size)  # the lead's D
+    guard = UnthreadedEye(*_on_grid(target if face_target is None else face_target, w - frame_w, space),
+                     sigma=EYE_SIGMA * lead.size)  # the lead's D
     guard.reset(lead.D)
     return polish_plan(Guarded(lead, guard), seq, space, budget=budget, passes=passes)
 
