@@ -24,7 +24,12 @@ With ``--colors SPEC`` (e.g. ``auto:3``) the plans are colour plans (``stringbot
 its defaults), scored by ``stringbot score``'s colour yardstick (``colour_score``): the luminance
 SSIM inside the face box and over the frame, and the mean CIEDE2000 inside the box and over the frame.
 
-Usage: python benchmarks/bench_face.py [--json] [--variants] [--shapes] [--start-pin N] [--colors SPEC] [--sheet docs/faces.png]
+With ``--starts own,37,151`` each plan is made from each of these start pins (``own``: the planner's
+own), and the differences ``--face`` minus ``--face off`` (blurred, face box / frame) are printed for each
+start and as their mean (a single plan's face figure scatters by about 0.025).
+
+Usage: python benchmarks/bench_face.py [--json] [--variants] [--shapes] [--start-pin N] [--starts LIST] [--colors SPEC]
+[--sheet docs/faces.png]
 [IMAGE ...]
 """
 
@@ -218,9 +223,23 @@ def main(argv=None):
     ap.add_argument("--variants", action="store_true", help="also the face's crop alone and its weights alone")
     ap.add_argument("--shapes", action="store_true", help="also the other face weight maps (SHAPES)")
     ap.add_argument("--start-pin", type=int, help="every plan from this pin (as plan --start-pin; not with --colors)")
+    ap.add_argument("--starts", help="comma-separated start pins ('own': the planner's own), e.g. own,37,151: "
+                    "each plan from each, and the differences --face on minus off averaged over them (not with "
+                    "--colors, --sheet)")
     ap.add_argument("--colors", help="colour plans with these threads (as plan --colors, e.g. auto:3)")
     ap.add_argument("--sheet", type=Path, help="write a contact sheet: luminance | --face off | luminance | --face on")
     a = ap.parse_args(argv)
+    if a.starts:
+        starts = [None if x.strip() == "own" else int(x) for x in a.starts.split(",")]
+        runs = {st: [run(im, variants=a.variants, shapes=a.shapes, start_pin=st) for im in a.images] for st in starts}
+        for rows in runs.values():
+            for r in rows:
+                del r["tiles"]
+        if a.json:
+            print(json.dumps({str(k): v for k, v in runs.items()}, indent=1))
+            return
+        mean_table(runs)
+        return
     rows = [run_colour(im, a.colors) if a.colors else run(im, variants=a.variants, shapes=a.shapes, start_pin=a.start_pin)
             for im in a.images]
     if a.sheet:
@@ -231,6 +250,27 @@ def main(argv=None):
         print(json.dumps(rows, indent=1))
         return
     table(rows)
+
+
+def mean_table(runs):
+    """Print, for each start pin of :func:`main`'s ``--starts``, the blurred differences --face on minus off
+    (face box / frame), then their mean over the starts, and the plans' mean lines and seconds."""
+    starts = list(runs)
+    first = runs[starts[0]]
+    plans = [n for n in first[0]["plans"] if n != "off"]
+    print("| picture | plan | " + " | ".join(f"start {'own' if s is None else s}: face / frame" for s in starts)
+          + " | mean: face / frame | lines | seconds |")
+    print("|---|---|" + "---|" * (len(starts) + 3))
+    for i, r in enumerate(first):
+        for name in plans:
+            d = [(runs[s][i]["plans"][name]["ssim_face_blurred"] - runs[s][i]["plans"]["off"]["ssim_face_blurred"],
+                  runs[s][i]["plans"][name]["ssim_frame_blurred"] - runs[s][i]["plans"]["off"]["ssim_frame_blurred"])
+                 for s in starts]
+            lines = sum(runs[s][i]["plans"][name]["lines"] for s in starts) / len(starts)
+            secs = sum(runs[s][i]["plans"][name]["seconds"] for s in starts) / len(starts)
+            mf, mr = sum(x[0] for x in d) / len(d), sum(x[1] for x in d) / len(d)
+            print(f"| {r['image']} | {name} | " + " | ".join(f"{f:+.3f} / {g:+.3f}" for f, g in d)
+                  + f" | **{mf:+.3f} / {mr:+.3f}** | {lines:.0f} | {secs:.1f} |")
 
 
 def table(rows):

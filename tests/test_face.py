@@ -240,10 +240,12 @@ def test_face_raises_the_face_ssim_as_woven_on_a_small_astronaut(tmp_path, astro
 
 def test_an_auto_plan_with_a_face_polishes_the_frame_after(tmp_path, astronaut):
     """--face, --lines auto: after the face-weighted polish a second one, led by the frame's error."""
+    from stringbot.planner.methods import residual
+
     img = small(astronaut, tmp_path, 160)
     p = plan_picture(img, pins=60, size=101, face="on")
     fp = p.stats["frame_polish"]
-    assert fp["passes"] == 3 and fp["woven_rms"] < fp["woven_rms_before"]  # the frame's error, lower
+    assert fp["passes"] == residual.FACE_PASSES and fp["woven_rms"] < fp["woven_rms_before"]  # the frame's error, lower
     assert "frame_polish" not in plan_picture(img, pins=60, size=101, face="off").stats
 
 
@@ -266,3 +268,98 @@ def test_the_chooser_sees_half_the_face_weight_the_polish_sees_all(tmp_path, ast
     assert residual.CHOOSE_FACE < 1.0
     plan_picture(img, pins=60, size=101, lines=200, face="off")
     assert seen[-1] == pytest.approx(1.0)
+
+
+def _drawn(cls, n=48, m=64, seed=5):
+    """A woven canvas of class ``cls`` with random chords drawn on a random target, and its pins' space."""
+    from stringbot.planner.model.chords import chord_space, frame_mask
+
+    space = chord_space(n)
+    rng = np.random.default_rng(seed)
+    mask = frame_mask(m, "circle")
+    t = np.where(mask, rng.random((m, m)), 0.0)
+    w = np.where(mask, 1.0 + 2.0 * rng.random((m, m)), 0.0)
+    canvas = cls(t, w, space.pin_xy, 1.2)
+    seq = [int(p) for p in rng.integers(0, n, 120)]
+    chords = [(a, b) for a, b in zip(seq[:-1], seq[1:]) if a != b]
+    canvas.build(chords)
+    return canvas, chords, rng
+
+
+def test_the_unthreaded_estimates_are_the_woven_canvas_estimates():
+    """--face's polishes sum their estimates' quadratic term without BLAS (UnthreadedWoven, UnthreadedEye):
+    the same figures as WovenCanvas's and EyeError's, up to rounding."""
+    from stringbot.planner.methods.eye import EyeError
+    from stringbot.planner.methods.polish import UnthreadedEye, UnthreadedWoven
+    from stringbot.planner.methods.woven import WovenCanvas
+
+    plain, chords, rng = _drawn(WovenCanvas)
+    fast, _, _ = _drawn(UnthreadedWoven)
+    for _ in range(40):
+        out = [chords[int(rng.integers(len(chords)))]]
+        inn = [tuple(int(p) for p in rng.choice(48, 2, replace=False))]
+        assert fast.estimate(out, inn) == pytest.approx(plain.estimate(out, inn), rel=1e-9, abs=1e-12)
+        assert fast.delta(out, inn) == pytest.approx(plain.delta(out, inn), rel=1e-9, abs=1e-12)
+        assert fast.helps(out, inn) == plain.helps(out, inn)
+    t, w = rng.random((64, 64)), rng.random((64, 64))
+    a, b = EyeError(t, w, sigma=1.3), UnthreadedEye(t, w, sigma=1.3)
+    cp = np.unique(rng.integers(0, 64 * 64, 300))
+    dD = rng.normal(0, 0.1, len(cp))
+    assert b.change(cp, dD)[0] == pytest.approx(a.change(cp, dD)[0], rel=1e-9)
+    assert b.change(cp, dD, blur2=True)[0] == a.change(cp, dD, blur2=True)[0]
+
+
+def test_a_guarded_canvas_does_not_try_a_change_its_guard_would_undo():
+    """Guarded.helps: the lead's estimate must fall and the guard's must not rise (a change the guard would
+    undo is not made and undone)."""
+    from stringbot.planner.methods.polish import Guarded, UnthreadedEye, UnthreadedWoven
+
+    lead, chords, rng = _drawn(UnthreadedWoven)
+    guard = UnthreadedEye(lead.t.reshape(64, 64) * 0.0, np.ones((64, 64)), sigma=1.0)  # wants it white
+    guard.reset(lead.D)
+    both = Guarded(lead, guard)
+    lead_only = said = 0
+    for _ in range(60):
+        out = [chords[int(rng.integers(len(chords)))]]
+        inn = [tuple(int(p) for p in rng.choice(48, 2, replace=False))]
+        cp, dD = lead._fine(out, inn, "none")
+        rises = cp is not None and guard.change(cp, dD)[0] > 0.0
+        if lead.helps(out, inn):
+            lead_only += 1
+            assert both.helps(out, inn) == (not rises)
+            said += both.helps(out, inn)
+        else:
+            assert not both.helps(out, inn)
+    assert lead_only > said  # the guard said no to some
+
+
+def test_the_face_led_passes_keep_the_frame_error_from_rising(tmp_path, astronaut, monkeypatch):
+    """--face: after the frame's polish, passes the face-weighted error leads and the frame's guards
+    (FACE_LED_PASSES): they lower the face-weighted error, the frame's does not rise."""
+    from stringbot.planner.methods import residual
+
+    img = small(astronaut, tmp_path, 160)
+    captured = {}
+    real = residual.frame_polish
+
+    def spy(target, w, frame_w, space, model, seq, **kw):
+        captured.update(target=target, w=w, frame_w=frame_w, space=space, model=model, seq=list(seq), kw=kw)
+        out = real(target, w, frame_w, space, model, seq, **kw)
+        captured["out"] = out
+        return out
+
+    monkeypatch.setattr(residual, "frame_polish", spy)
+    p = plan_picture(img, pins=60, size=101, face="on")
+    assert residual.FACE_LED_PASSES > 0 and p.stats["frame_polish"]["face_led"]["passes"] == residual.FACE_LED_PASSES
+    c = captured
+    seq, stats = c["out"]
+    assert stats["face_led"]["woven_rms"] <= stats["face_led"]["woven_rms_before"]
+
+    def error(weights, s):
+        cv = residual.woven_canvas(c["target"], weights, c["space"], c["model"])
+        return cv.build(list(zip(s[:-1], s[1:])))
+
+    # the frame's error of the plan after it, against the plan before the face-led passes: not higher
+    before, _ = real(c["target"], c["w"], c["frame_w"], c["space"], c["model"], c["seq"], **dict(c["kw"], face_passes=0))
+    assert error(c["frame_w"], seq) <= error(c["frame_w"], before) * (1 + 1e-9)
+    assert error(c["w"], seq) < error(c["w"], before)

@@ -46,14 +46,14 @@ import numpy as np
 
 from ...errors import BadInput
 from ..model.lines import PinLines
-from ..picture.resample import gaussian_blur, unsharp
+from ..picture.resample import unsharp
 from ..progress import report
 from . import Outcome
 from .canvas import Canvas, fresh
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "FACE_SHARPEN", "CHOOSE_FACE", "PATIENCE",
+__all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "FACE_LED_PASSES", "CHOOSE_FACE", "PATIENCE",
            "EYE_SHARE", "EYE_FIRST", "LENGTH_POWER", "SHARPEN"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
@@ -85,13 +85,10 @@ CHOOSE_POINTS, CHOOSE_POINTS_POLISHED = 400, 200
 CHOOSE_FACE = 0.5
 #: ``--face``: passes of inserts and deletes in the second polish, the one the frame's error leads and the
 #: face's own error guards (:func:`frame_polish`; docs/planner.md, "Faces")
-FACE_PASSES = 3
-#: ``--face``: the chooser's target sharpened this much more over the face (the amount of :data:`SHARPEN`
-#: plus this times the face's extra weight over its largest): SSIM rewards the face's structure
-FACE_SHARPEN = 0.0
-#: ``--face``: the polishes' target (the face-weighted one's, and the face's guard's) sharpened over the face
-#: by this times the face's share (0 elsewhere; :func:`_face_share`)
-FACE_SHARPEN_POLISH = 0.0
+FACE_PASSES = 2
+#: ``--face``: then passes of inserts and deletes in a third polish, the face-weighted error leading and the
+#: frame's guarding (after its reroutes): the face gains where the frame does not lose (:func:`frame_polish`)
+FACE_LED_PASSES = 2
 
 
 def best_start(canvas, space, pin_lines):
@@ -241,17 +238,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     w = mask.astype(np.float64) if weights is None else np.where(mask, weights, 0.0)
     # the threads are chosen against the picture sharpened (see SHARPEN), judged by the eye against itself
     amount, sigma = SHARPEN
-    dark = 1.0 - pic.gray / 255.0
-    if frame_weights is not None and FACE_SHARPEN:  # --face: the face sharpened more (FACE_SHARPEN)
-        amount = amount + FACE_SHARPEN * _face_share(w, frame_weights, mask)
-        sharp = np.clip(dark + amount * (dark - gaussian_blur(dark, sigma * size)), 0.0, 1.0)
-    else:
-        sharp = unsharp(dark, amount=amount, sigma=sigma * size)
-    sharp = np.where(mask, sharp, 0.0)
-    face_target = target  # the face-weighted polishes' target
-    if frame_weights is not None and FACE_SHARPEN_POLISH:
-        a = FACE_SHARPEN_POLISH * _face_share(w, frame_weights, mask)
-        face_target = np.where(mask, np.clip(dark + a * (dark - gaussian_blur(dark, sigma * size)), 0.0, 1.0), 0.0)
+    sharp = np.where(mask, unsharp(1.0 - pic.gray / 255.0, amount=amount, sigma=sigma * size), 0.0)
     # --face: the chooser (and its stop) sees a share of the face's extra weight, the polishes all of it
     chosen_w = w if frame_weights is None else \
         np.where(mask, frame_weights + CHOOSE_FACE * (w - frame_weights), 0.0)
@@ -280,7 +267,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
                 eye_lines = eye_lines_for(canvas, space)
                 points = SharedPoints([pin_lines, eye_lines], [(0, p) for p in range(space.pins - 1, -1, -1)]
                                       + [(1, p) for p in range(space.pins)])
-            helper = WovenHelper(lambda: woven_canvas(face_target, w, space, model, cls=cls), space, drawing=drawing,
+            helper = WovenHelper(lambda: woven_canvas(target, w, space, model, cls=cls), space, drawing=drawing,
                                  patience=PATIENCE, points=points)
     try:
         t = time.perf_counter()
@@ -311,7 +298,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         out["polish_processes"] = 1 if done is None else 2
         drawings = None if done is None else helper.drawing
         if done is None:
-            woven = woven_canvas(face_target, w, space, model, cls=cls)
+            woven = woven_canvas(target, w, space, model, cls=cls)
             woven.build(list(zip(seq[:-1], seq[1:])))
             done = polish_plan(woven, seq, space, budget=polish, passes=passes)
         seq, ps = done
@@ -319,8 +306,8 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         if frame_weights is not None:
             t = time.perf_counter()
             report("polishing the frame")
-            seq, out["frame_polish"] = frame_polish(target, w, np.where(mask, frame_weights, 0.0), space, model, seq,
-                                                    budget=polish, face_target=face_target)
+            fw = np.where(mask, frame_weights, 0.0)
+            seq, out["frame_polish"] = frame_polish(target, w, fw, space, model, seq, budget=polish)
             out["frame_polish_seconds"] = round(time.perf_counter() - t, 3)
         return seq, out, drawings
     finally:
@@ -328,27 +315,41 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
             helper.close()
 
 
-def _face_share(w, frame_w, mask):
-    """The face's extra weight over its largest, 0 .. 1 (0 away from the face and outside the frame)."""
-    extra = np.where(mask, np.asarray(w, np.float64) - frame_w, 0.0)
-    return extra / max(float(extra.max(initial=0.0)), 1e-12)
-
-
-def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=FACE_PASSES, face_target=None):
+def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=None, face_passes=None):
     """``--face``: after the face-weighted plan, a polish that the frame's error (``frame_w``: the weights
     without the face's) leads and the face's guards (the error weighed by ``w - frame_w``, the face's
     extra weight, 0 away from it): a change is kept only where the frame's error drops and the face's
     does not rise (:class:`~.polish.Guarded`), so the frame wins back some of what weighing the face cost
-    it and the face keeps what it gained.  ``(seq, stats)`` as :func:`~.polish.polish_plan`."""
+    it and the face keeps what it gained.  Then (``face_passes``, default :data:`FACE_LED_PASSES`) the same
+    the other way round, on the same drawing: the face-weighted error ``w`` leads, the frame's guards, so
+    the face gains where the frame does not lose.  ``(seq, stats)`` as :func:`~.polish.polish_plan`, the
+    second polish's stats under ``face_led``; the estimates are :class:`~.polish.Unthreaded`."""
     from .polish import Guarded, UnthreadedEye, UnthreadedWoven, polish_plan
     from .woven import EYE_SIGMA
 
     lead = woven_canvas(target, frame_w, space, model, cls=UnthreadedWoven)
     lead.build(list(zip(seq[:-1], seq[1:])))
-    guard = UnthreadedEye(*_on_grid(target if face_target is None else face_target, w - frame_w, space),
-                     sigma=EYE_SIGMA * lead.size)  # the lead's D
+    sigma = EYE_SIGMA * lead.size
+    guard = UnthreadedEye(*_on_grid(target, w - frame_w, space), sigma=sigma)  # on the lead's D
     guard.reset(lead.D)
-    return polish_plan(Guarded(lead, guard), seq, space, budget=budget, passes=passes)
+    seq, stats = polish_plan(Guarded(lead, guard), seq, space, budget=budget,
+                             passes=FACE_PASSES if passes is None else passes)
+    face_passes = FACE_LED_PASSES if face_passes is None else face_passes
+    if face_passes:
+        frame_guard = UnthreadedEye(*_on_grid(target, frame_w, space), sigma=sigma)
+        frame_guard.reset(lead.D)
+        _reweigh(lead, _on_grid(target, w, space)[1])
+        seq, stats["face_led"] = polish_plan(Guarded(lead, frame_guard), seq, space, budget=budget, passes=face_passes)
+    return seq, stats
+
+
+def _reweigh(canvas, w):
+    """Give a drawn :class:`~.woven.WovenCanvas` other pixel weights ``w`` (on its grid): its error and slope
+    as :meth:`~.woven.WovenCanvas.finish` makes them, the drawing kept."""
+    canvas.s = np.sqrt(np.asarray(w, dtype=np.float64).ravel())
+    canvas.reset(canvas.D)
+    canvas.u[canvas.pidx] = canvas.s * (1.0 - canvas.D)
+    canvas.g = canvas.u * canvas.G
 
 
 def _on_grid(target, w, space):
