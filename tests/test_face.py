@@ -360,6 +360,7 @@ def test_the_face_led_passes_keep_the_frame_error_from_rising(tmp_path, astronau
         return cv.build(list(zip(s[:-1], s[1:])))
 
     # the frame's error of the plan after it, against the plan before the face-led passes: not higher
-    before, _ = real(c["target"], c["w"], c["frame_w"], c["space"], c["model"], c["seq"], **dict(c["kw"], face_passes=0))
+    before, _ = real(c["target"], c["w"], c["frame_w"], c["space"], c["model"], c["seq"],
+                     **dict(c["kw"], face_passes=0))
     assert error(c["frame_w"], seq) <= error(c["frame_w"], before) * (1 + 1e-9)
     assert error(c["w"], seq) < error(c["w"], before)

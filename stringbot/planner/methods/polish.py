@@ -41,7 +41,8 @@ from .woven import WovenCanvas
 log = logging.getLogger(__name__)
 
 __all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "move_passes",
-           "Guarded", "Unthreaded", "UnthreadedWoven", "UnthreadedEye", "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES", "MAX_PASSES"]
+           "Guarded", "Unthreaded", "UnthreadedWoven", "UnthreadedEye", "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES",
+           "MAX_PASSES"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
 POLISH_SPACING = 2.0
