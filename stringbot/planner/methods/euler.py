@@ -55,8 +55,9 @@ SCAN = (0.8, 2.0, 13)
 
 
 def coverage(space, size, width_px):
-    """``(A, A^T)``: each chord's coverage of each pixel of a ``size``-px grid (its length in the pixel
-    times the thread's width, at most 1), pixels x chords and chords x pixels, CSR."""
+    """``(AT, w)``: which pixels of a ``size``-px grid each chord covers, chords x pixels, CSR of float32
+    ones, and each chord's coverage of them (its length in a pixel times the thread's width, at most
+    1), float32: the coverage matrix ``A`` (pixels x chords) is ``AT^T diag(w)``."""
     import scipy.sparse as sp
 
     from ..model.chords import chord_pixels, pin_pixels
@@ -65,38 +66,54 @@ def coverage(space, size, width_px):
     rc = pin_pixels(space.pin_xy, size).astype(np.float64)
     d = rc[space.ends[:, 1]] - rc[space.ends[:, 0]]
     per = np.hypot(d[:, 0], d[:, 1]) / np.maximum(np.abs(d).max(axis=1), 1.0)  # length per pixel step
-    vals = np.repeat(np.minimum(per * width_px, 1.0), np.diff(indptr))
-    AT = sp.csr_matrix((vals, indices, indptr), shape=(space.m, size * size))
-    return AT.T.tocsr(), AT
+    AT = sp.csr_matrix((np.ones(len(indices), dtype=np.float32), indices, indptr), shape=(space.m, size * size),
+                       copy=False)
+    return AT, np.minimum(per * width_px, 1.0).astype(np.float32)
 
 
-def objective(A, AT, target, weights, sigma):
-    """``f(x) -> (E, grad)``: ``E = || B (s (t - D)) ||^2`` with ``D = 1 - exp(-A x)``, ``B`` the
-    Gaussian blur of ``sigma`` px, ``s`` the square root of the weights, and its gradient."""
+def objective(AT, w, target, weights, sigma):
+    """``f(x) -> (E, grad)``: ``E = || B (s (t - D)) ||^2`` with ``D = 1 - exp(-A x)`` (``A = AT^T diag(w)``,
+    :func:`coverage`, over the chords of ``AT``'s rows), ``B`` the Gaussian blur of ``sigma`` px, ``s`` the
+    square root of the weights, and its gradient.  The sparse products are in float32, the rest in
+    float64; ``f.darkness(x)`` is ``A x`` alone."""
     from scipy.ndimage import gaussian_filter
 
     m = target.shape[0]
     s = np.sqrt(weights).ravel()
     t = target.ravel()
+    w32 = np.asarray(w, dtype=np.float32)
 
     def blur(v):
         return gaussian_filter(v.reshape(m, m), sigma, mode="constant").ravel()
 
+    def darkness(x):
+        nz = np.flatnonzero(x)
+        if len(nz) * 4 < len(x):  # few chords: only their rows
+            return AT[nz].T @ (w32[nz] * x[nz].astype(np.float32))
+        return AT.T @ (w32 * x.astype(np.float32))
+
     def f(x):
-        ex = np.exp(-(A @ x))
+        ex = np.exp(-darkness(x).astype(np.float64))
         r = blur(s * (t - (1.0 - ex)))
-        return float(r @ r), AT @ (ex * (-2.0 * s * blur(r)))
+        back = (ex * (-2.0 * s * blur(r))).astype(np.float32)
+        return float(r @ r), (w32 * (AT @ back)).astype(np.float64)
+
+    def value(x):
+        ex = np.exp(-darkness(x).astype(np.float64))
+        r = blur(s * (t - (1.0 - ex)))
+        return float(r @ r)
+    f.value = value
     return f
 
 
 def _solve(f, x0, iterations, lam=0.0):
     """``x`` after L-BFGS-B on ``f`` plus ``lam * sum x (1 - x)``, from ``x0``."""
-    from scipy.optimize import minimize
+    from scipy.optimize import Bounds, minimize
 
     def fp(y):
         E, g = f(y)
         return E + lam * float(np.sum(y * (1.0 - y))), g + lam * (1.0 - 2.0 * y)
-    res = minimize(fp if lam else f, x0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * len(x0),
+    res = minimize(fp if lam else f, x0, jac=True, method="L-BFGS-B", bounds=Bounds(0.0, 1.0),
                    options={"maxiter": int(iterations)})
     return res.x
 
@@ -120,13 +137,12 @@ def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITE
         Then ``(lam, iterations)`` stages over the chords above ``prune``.
     prune : float
     """
-    A, AT = coverage(space, target.shape[0], width_px)
-    f = objective(A, AT, target, weights, sigma)
+    AT, w = coverage(space, target.shape[0], width_px)
+    f = objective(AT, w, target, weights, sigma)
     x = _solve(f, np.full(space.m, 0.02), iterations)
     if schedule:
         cols = np.flatnonzero(x > prune)
-        sub = AT[cols]
-        fc = objective(sub.T.tocsr(), sub, target, weights, sigma)
+        fc = objective(AT[cols], w[cols], target, weights, sigma)
         xc = x[cols]
         for lam, its in schedule:
             xc = _solve(fc, xc, its, lam)
@@ -146,7 +162,7 @@ def choose_chords(space, x, f, *, scan=SCAN, start=None, lines=None):
         v = np.zeros(space.m)
         v[order[:k]] = 1.0
         count = make_trail(space, v.astype(np.int64), f(v)[1], start=start)
-        return f(count.astype(np.float64))[0], count, k
+        return f.value(count.astype(np.float64)), count, k
 
     if lines is not None:
         k = min(int(lines), space.m)
