@@ -44,8 +44,14 @@ __all__ = ["run", "coverage", "relaxed_densities", "choose_chords", "pair_odd", 
 
 #: side of the grid the densities are solved on (the polish's grid)
 GRID = 256
-#: L-BFGS-B iterations over all chords, before the chords under :data:`PRUNE` are left out
-ITERATIONS = 40
+#: L-BFGS-B iterations over all chords, from 0.02 each
+ITERATIONS = 10
+#: then rounds of as many iterations over the active chords (above :data:`ACTIVE`, or growing)
+ROUNDS = (40, 40, 40)
+#: chords at or under this density are active in a round only if their slope is negative
+ACTIVE = 1e-3
+#: chords from which the products over them run in two halves (on two threads where there are two cores)
+SPLIT = 20000
 #: then ``(lam, iterations)`` stages with ``lam * sum x (1 - x)`` added (units of the summed squared error)
 SCHEDULE = ((0.02, 20), (0.1, 20), (0.4, 20))
 #: chords under this density after the first iterations are left out of the stages
@@ -71,38 +77,76 @@ def coverage(space, size, width_px):
     return AT, np.minimum(per * width_px, 1.0).astype(np.float32)
 
 
-def objective(AT, w, target, weights, sigma):
-    """``f(x) -> (E, grad)``: ``E = || B (s (t - D)) ||^2`` with ``D = 1 - exp(-A x)`` (``A = AT^T diag(w)``,
+class _Products:
+    """``A x`` and ``A^T y`` in float32 (``A = AT^T diag(w)``, :func:`coverage`), with ``AT``'s rows in two
+    halves that ``threads`` (a ``ThreadPoolExecutor``, or None) takes one of: the same sums either way
+    (scipy's sparse products let go of the interpreter's lock while they run)."""
+
+    def __init__(self, AT, w, threads=None):
+        self.AT, self.w = AT, np.asarray(w, dtype=np.float32)
+        m = AT.shape[0]
+        self.threads = threads if m >= SPLIT else None
+        self.halves = [_rows(AT, 0, m // 2), _rows(AT, m // 2, m)] if m >= SPLIT else [AT]
+
+    def _both(self, fn):
+        if self.threads is None or len(self.halves) == 1:
+            return [fn(h) for h in self.halves]
+        first = self.threads.submit(fn, self.halves[0])
+        second = fn(self.halves[1])
+        return [first.result(), second]
+
+    def darkness(self, x):
+        """``A x`` (float32, one per pixel); of the chords' own rows where few are nonzero."""
+        x = np.asarray(x)
+        nz = np.flatnonzero(x)
+        if len(nz) * 4 < len(x):
+            return self.AT[nz].T @ (self.w[nz] * x[nz].astype(np.float32))
+        v = self.w * x.astype(np.float32)
+        cut = self.halves[0].shape[0]
+        parts = self._both(lambda h: h.T @ (v[:cut] if h is self.halves[0] else v[cut:]))
+        return parts[0] if len(parts) == 1 else parts[0] + parts[1]
+
+    def back(self, y):
+        """``A^T y`` (float32, one per chord)."""
+        y = np.asarray(y, dtype=np.float32)
+        parts = self._both(lambda h: h @ y)
+        return self.w * (parts[0] if len(parts) == 1 else np.concatenate(parts))
+
+
+def _rows(AT, a, b):
+    """Rows ``a:b`` of the CSR ``AT`` sharing its data (no copy but of the row pointers)."""
+    import scipy.sparse as sp
+
+    p = AT.indptr
+    return sp.csr_matrix((AT.data[p[a]:p[b]], AT.indices[p[a]:p[b]], p[a:b + 1] - p[a]), shape=(b - a, AT.shape[1]),
+                         copy=False)
+
+
+def objective(AT, w, target, weights, sigma, *, threads=None):
+    """``f(x) -> (E, grad)``: ``E = || B (s (t - D)) ||^2 = <u, B^2 u>`` (``u = s (t - D)``) with ``D = 1 - exp(-A x)`` (``A = AT^T diag(w)``,
     :func:`coverage`, over the chords of ``AT``'s rows), ``B`` the Gaussian blur of ``sigma`` px, ``s`` the
-    square root of the weights, and its gradient.  The sparse products are in float32, the rest in
-    float64; ``f.darkness(x)`` is ``A x`` alone."""
+    square root of the weights, and its gradient; ``f.value(x)`` is ``E`` alone.  The sparse products are
+    in float32 (:class:`_Products`, on ``threads``), the rest in float64."""
     from scipy.ndimage import gaussian_filter
 
     m = target.shape[0]
     s = np.sqrt(weights).ravel()
     t = target.ravel()
-    w32 = np.asarray(w, dtype=np.float32)
+    prod = _Products(AT, w, threads)
 
-    def blur(v):
-        return gaussian_filter(v.reshape(m, m), sigma, mode="constant").ravel()
-
-    def darkness(x):
-        nz = np.flatnonzero(x)
-        if len(nz) * 4 < len(x):  # few chords: only their rows
-            return AT[nz].T @ (w32[nz] * x[nz].astype(np.float32))
-        return AT.T @ (w32 * x.astype(np.float32))
-
-    def f(x):
-        ex = np.exp(-darkness(x).astype(np.float64))
-        r = blur(s * (t - (1.0 - ex)))
-        back = (ex * (-2.0 * s * blur(r))).astype(np.float32)
-        return float(r @ r), (w32 * (AT @ back)).astype(np.float64)
+    def blur2(v):  # B^2 = the blur of sigma * sqrt(2) (to 1e-5 of the peak): one pass for E and its slope
+        return gaussian_filter(v.astype(np.float32).reshape(m, m), sigma * np.sqrt(2.0), mode="constant").ravel()
 
     def value(x):
-        ex = np.exp(-darkness(x).astype(np.float64))
-        r = blur(s * (t - (1.0 - ex)))
-        return float(r @ r)
-    f.value = value
+        ex = np.exp(-prod.darkness(x).astype(np.float64))
+        u = s * (t - (1.0 - ex))
+        bu = blur2(u)
+        return float(u @ bu), bu, ex
+
+    def f(x):
+        E, bu, ex = value(x)
+        return E, prod.back(ex * (-2.0 * s * bu)).astype(np.float64)
+    f.value = lambda x: value(x)[0]
     return f
 
 
@@ -118,8 +162,8 @@ def _solve(f, x0, iterations, lam=0.0):
     return res.x
 
 
-def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITERATIONS, schedule=SCHEDULE,
-                      prune=PRUNE):
+def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITERATIONS, rounds=ROUNDS,
+                      schedule=SCHEDULE, prune=PRUNE, threads=None):
     """The chords' densities (see the module notes): ``(x, f)``, ``f`` the objective over all chords.
 
     Parameters
@@ -133,16 +177,31 @@ def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITE
         The eye's blur in grid pixels.
     iterations : int
         Over all chords, from 0.02 each.
+    rounds : sequence of int
+        Then rounds of as many iterations over the active chords: those above :data:`ACTIVE` and
+        those below whose slope says they would grow (all chords' slope, after each round).
     schedule : sequence of (float, int)
         Then ``(lam, iterations)`` stages over the chords above ``prune``.
     prune : float
+    threads : concurrent.futures.ThreadPoolExecutor, optional
+        One thread to take half of every product over all chords (the plan is the same without).
     """
     AT, w = coverage(space, target.shape[0], width_px)
-    f = objective(AT, w, target, weights, sigma)
+    f = objective(AT, w, target, weights, sigma, threads=threads)
+
+    def over(cols, x0, its, lam=0.0):
+        fc = objective(AT[cols], w[cols], target, weights, sigma, threads=threads)
+        x = np.zeros(space.m)
+        x[cols] = _solve(fc, x0[cols], its, lam)
+        return x
+
     x = _solve(f, np.full(space.m, 0.02), iterations)
+    for its in rounds:
+        grow = (x <= ACTIVE) & (f(x)[1] < 0.0)
+        x = over(np.flatnonzero((x > ACTIVE) | grow), x, its)
     if schedule:
         cols = np.flatnonzero(x > prune)
-        fc = objective(AT[cols], w[cols], target, weights, sigma)
+        fc = objective(AT[cols], w[cols], target, weights, sigma, threads=threads)
         xc = x[cols]
         for lam, its in schedule:
             xc = _solve(fc, xc, its, lam)
@@ -280,6 +339,8 @@ def euler_sequence(space, count, *, start=None):
 def run(job):
     """``--method euler`` through the methods' contract (:mod:`stringbot.planner.methods`): the chord set,
     its thread, then the polish of :mod:`.residual`'s (two processes where there are two cores)."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from ...errors import BadInput
     from ..model.chords import frame_mask
     from ..model.scoring import WOVEN_SIGMA, WOVEN_SIZE
@@ -301,16 +362,24 @@ def run(job):
         preview = k.get("preview")
         drawing = None if preview is None or passes else TwinDrawing(preview, model)
         helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing, patience=0)
+    threads = ThreadPoolExecutor(1) if two_cores() else None  # after the fork: half of each product over all chords
     try:
         t0 = time.perf_counter()
         m = min(GRID, target.shape[0])
         inside = frame_mask(m, space.frame)
+        import os
+        if os.environ.get("E4_CAPTURE"):
+            np.savez(os.environ["E4_CAPTURE"], target=np.where(inside, resize_square(target, m), 0.0),
+                     weights=np.where(inside, resize_square(w, m), 0.0), width=model.width_px(m),
+                     sigma=WOVEN_SIGMA * m / WOVEN_SIZE, pins=space.pins)
         x, f = relaxed_densities(space, np.where(inside, resize_square(target, m), 0.0),
                                  np.where(inside, resize_square(w, m), 0.0), model.width_px(m),
-                                 sigma=WOVEN_SIGMA * m / WOVEN_SIZE)
+                                 sigma=WOVEN_SIGMA * m / WOVEN_SIZE, threads=threads)
         t1 = time.perf_counter()
         lines = None if job.lines == "auto" else int(job.lines)
         count, chosen = choose_chords(space, x, f, start=job.start_pin, lines=lines)
+        if threads is not None:
+            threads.shutdown()
         seq = euler_sequence(space, count, start=job.start_pin)
         if lines is not None:
             seq = seq[:lines + 1]
@@ -334,6 +403,8 @@ def run(job):
         seq, stats["polish"] = done
         stats["polish_seconds"] = round(time.perf_counter() - t2, 3)
     finally:
+        if threads is not None:
+            threads.shutdown()
         if helper is not None:
             helper.close()
     log.info("euler: %d chords chosen, %d added, %d left out; %d lines after the polish", stats["chords_chosen"],
