@@ -40,7 +40,7 @@ from . import Outcome
 log = logging.getLogger(__name__)
 
 __all__ = ["run", "coverage", "relaxed_densities", "choose_chords", "pair_odd", "make_trail", "euler_sequence",
-           "GRID", "ITERATIONS", "SCHEDULE", "PRUNE", "SCAN"]
+           "GRID", "ITERATIONS", "ROUNDS", "ACTIVE", "SPLIT", "SCHEDULE", "PRUNE", "DELETES", "SCAN"]
 
 #: side of the grid the densities are solved on (the polish's grid)
 GRID = 256
@@ -51,11 +51,14 @@ ROUNDS = (40, 40, 40)
 #: chords at or under this density are active in a round only if their slope is negative
 ACTIVE = 1e-3
 #: chords from which the products over them run in two halves (on two threads where there are two cores)
-SPLIT = 20000
+SPLIT = 2000
 #: then ``(lam, iterations)`` stages with ``lam * sum x (1 - x)`` added (units of the summed squared error)
 SCHEDULE = ((0.02, 20), (0.1, 20), (0.4, 20))
 #: chords under this density after the first iterations are left out of the stages
 PRUNE = 0.01
+#: passes of deletes (``a-p-c -> a-c``, kept where the piece as woven gets better) after the polish: the
+#: pairing's extra chords are what they take out
+DELETES = 1
 #: chord counts tried: from ``SCAN[0]`` to ``SCAN[1]`` times the chords over 0.5, ``SCAN[2]`` of them
 SCAN = (0.8, 2.0, 13)
 
@@ -352,6 +355,7 @@ def run(job):
     k = job.knobs
     space, model = job.space, job.model
     polish, passes = k["polish"], k.get("polish_passes") or 0
+    deletes = DELETES if polish and job.lines == "auto" else 0  # with --lines N the line count stays
     target = np.where(job.mask, 1.0 - job.picture.gray / 255.0, 0.0)
     if float(target.max(initial=0.0)) < 1.0 / 255:
         raise BadInput("euler found nothing to draw: the picture is blank inside the frame; "
@@ -360,7 +364,7 @@ def run(job):
     helper = None
     if polish and two_cores():  # the helper lays out the polish's chords while the densities are solved
         preview = k.get("preview")
-        drawing = None if preview is None or passes else TwinDrawing(preview, model)
+        drawing = None if preview is None or passes or deletes else TwinDrawing(preview, model)
         helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing, patience=0)
     threads = ThreadPoolExecutor(1) if two_cores() else None  # after the fork: half of each product over all chords
     try:
@@ -394,12 +398,12 @@ def run(job):
         if helper is not None and polish:
             for a, b in zip(seq[:-1], seq[1:]):
                 helper.add((int(a), int(b)))
-            done = helper.finish(seq, polish, passes)
+            done = helper.finish(seq, polish, passes, deletes)
             drawings = None if done is None else helper.drawing
         if done is None:
             woven = woven_canvas(target, w, space, model)
             woven.build(list(zip(seq[:-1], seq[1:])))
-            done = polish_plan(woven, seq, space, budget=polish, passes=passes)
+            done = polish_plan(woven, seq, space, budget=polish, passes=passes, deletes=deletes)
         seq, stats["polish"] = done
         stats["polish_seconds"] = round(time.perf_counter() - t2, 3)
     finally:
@@ -409,6 +413,7 @@ def run(job):
             helper.close()
     log.info("euler: %d chords chosen, %d added, %d left out; %d lines after the polish", stats["chords_chosen"],
              stats["chords_added"], stats["chords_left_out"], len(seq) - 1)
-    params = {"polish": polish, "polish_passes": passes, "grid": m, "iterations": ITERATIONS,
+    params = {"polish": polish, "polish_passes": passes, "polish_deletes": deletes, "grid": m,
+              "iterations": ITERATIONS, "rounds": list(ROUNDS), "active": ACTIVE,
               "schedule": [list(s) for s in SCHEDULE], "prune": PRUNE, "thread_px": round(model.width_px(k["size"]), 4)}
     return Outcome([int(p) for p in seq], params, stats, drawings=drawings)
