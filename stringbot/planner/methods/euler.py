@@ -371,11 +371,6 @@ def run(job):
         t0 = time.perf_counter()
         m = min(GRID, target.shape[0])
         inside = frame_mask(m, space.frame)
-        import os
-        if os.environ.get("E4_CAPTURE"):
-            np.savez(os.environ["E4_CAPTURE"], target=np.where(inside, resize_square(target, m), 0.0),
-                     weights=np.where(inside, resize_square(w, m), 0.0), width=model.width_px(m),
-                     sigma=WOVEN_SIGMA * m / WOVEN_SIZE, pins=space.pins)
         x, f = relaxed_densities(space, np.where(inside, resize_square(target, m), 0.0),
                                  np.where(inside, resize_square(w, m), 0.0), model.width_px(m),
                                  sigma=WOVEN_SIGMA * m / WOVEN_SIZE, threads=threads)
