@@ -12,8 +12,14 @@ thread:
    minimises the error as the eye sees it (the picture's darkness minus
    ``D``, both blurred as ``stringbot score`` blurs them, squared, over the
    frame) by L-BFGS-B: :data:`ITERATIONS` iterations over all chords, then
-   the stages of :data:`SCHEDULE` over the chords above :data:`PRUNE`, each
-   adding ``lam * sum x (1 - x)``, which drives every density to 0 or 1.
+   the :data:`ROUNDS` over the active chords only (those above
+   :data:`ACTIVE`, and those under it whose slope over all chords says they
+   would grow: one product over all chords a round), then the stages of
+   :data:`SCHEDULE` over the chords above :data:`PRUNE`, each adding
+   ``lam * sum x (1 - x)``, which drives every density to 0 or 1.  The
+   sparse products are float32 (the coverage is one CSR pattern, chords x
+   pixels, and a width per chord), over 2000 chords and more in two halves
+   (a second thread takes one where there are two cores: the same sums).
    The chords are then taken in order of density, as many as give the
    lowest error once made one thread (:data:`SCAN`, :func:`choose_chords`).
 2. *One thread* (:func:`make_trail`, :func:`euler_sequence`).  A thread is
@@ -25,7 +31,8 @@ thread:
    chord, and the trail is walked (Hierholzer).  A chord joins two pins, so
    no pin comes twice in a row.
 3. *The polish* (:mod:`.polish`, on two cores where there are two, as the
-   default method's) of that sequence against the picture as woven.
+   default method's) of that sequence against the picture as woven, then
+   :data:`DELETES` pass of deletes (with ``--lines auto``).
 
 Measured against the default in docs/planner.md ("The euler method").
 """
