@@ -133,10 +133,11 @@ def _rows(AT, a, b):
 
 
 def objective(AT, w, target, weights, sigma, *, threads=None):
-    """``f(x) -> (E, grad)``: ``E = || B (s (t - D)) ||^2 = <u, B^2 u>`` (``u = s (t - D)``) with ``D = 1 - exp(-A x)`` (``A = AT^T diag(w)``,
-    :func:`coverage`, over the chords of ``AT``'s rows), ``B`` the Gaussian blur of ``sigma`` px, ``s`` the
-    square root of the weights, and its gradient; ``f.value(x)`` is ``E`` alone.  The sparse products are
-    in float32 (:class:`_Products`, on ``threads``), the rest in float64."""
+    """``f(x) -> (E, grad)``: ``E = || B (s (t - D)) ||^2 = <u, B^2 u>`` (``u = s (t - D)``) with
+    ``D = 1 - exp(-A x)`` (``A = AT^T diag(w)``, :func:`coverage`, over the chords of ``AT``'s rows),
+    ``B`` the Gaussian blur of ``sigma`` px, ``s`` the square root of the weights, and its gradient;
+    ``f.value(x)`` is ``E`` alone.  The sparse products are in float32 (:class:`_Products`, on
+    ``threads``), the rest in float64."""
     from scipy.ndimage import gaussian_filter
 
     m = target.shape[0]
