@@ -104,3 +104,42 @@ def test_refine_is_refused_where_there_is_no_pixel_refinement(tmp_path, method):
     with pytest.raises(BadInput, match=rf"--refine works with --method residual only; {method} has no"):
         plan_picture(tmp_path / "never-read.png", method=method, pins=60, size=101, refine=10)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_second_thread_for_the_products_leaves_the_densities_as_they_are():
+    """Products over many chords run in two halves; a second thread takes one, the sums are the same."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from stringbot.planner.methods.euler import SPLIT
+    from stringbot.planner.picture.resample import resize_square
+
+    m = 64
+    space = chord_space(80)
+    assert space.m >= SPLIT  # the halves are used
+    mask = frame_mask(m, "circle")
+    t = np.where(mask, 1 - resize_square(disc_picture(), m) / 255.0, 0.0)
+    kw = dict(sigma=0.5, iterations=5, rounds=(10,), schedule=((0.1, 5),))
+    alone, f = relaxed_densities(space, t, mask.astype(float), 0.1, **kw)
+    with ThreadPoolExecutor(1) as threads:
+        paired, _ = relaxed_densities(space, t, mask.astype(float), 0.1, threads=threads, **kw)
+    assert np.array_equal(alone, paired)
+    assert f(alone)[0] < 0.5 * f(np.zeros(space.m))[0]
+
+
+@pytest.mark.parametrize("processes", ["1", "2"])
+def test_the_deletes_after_the_polish_shorten_the_thread_and_are_recorded(tmp_path, monkeypatch, processes):
+    from skimage.io import imsave
+
+    import os
+    if processes == "2" and not hasattr(os, "fork"):
+        pytest.skip("the helper processes are forked")
+    monkeypatch.setenv("STRINGBOT_PROCESSES", processes)
+    imsave(tmp_path / "disc.png", disc_picture().astype(np.uint8))
+    p = plan_picture(tmp_path / "disc.png", method="euler", pins=60, size=101, polish=100)
+    ps = p.stats["polish"]
+    assert p.parameters["polish_deletes"] == 1 and p.parameters["polish_passes"] == 0
+    assert ps["delete_passes"] == 1 and "passes" not in ps
+    assert ps["woven_rms"] <= ps["woven_rms_rerouted"]
+    lines = p.stats["chords_chosen"] + p.stats["chords_added"] - p.stats["chords_left_out"]
+    assert len(p.sequence) - 1 == lines - ps["deleted"]
+    assert all(a != b for a, b in zip(p.sequence[:-1], p.sequence[1:]))

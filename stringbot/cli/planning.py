@@ -80,7 +80,8 @@ class _Lines(click.ParamType):
                    "from a step away (0: none) [default: 1000 with --lines auto, 0 with a line count].")
 @click.option("--polish-passes", "polish_passes", type=int, default=None, metavar="N",
               help="Residual and euler: N passes of inserted and deleted pins after the polish, each kept only if the piece "
-                   "as woven gets better: slower, a little better (0..20; 0: none) [default: 0; euler: 1 with --lines auto].")
+                   "as woven gets better: slower, a little better (0..20; 0: none; euler deletes once after the polish anyway "
+                   "with --lines auto) [default: 0].")
 @click.option("--no-cache", is_flag=True, help="Do not read or write the chord cache.")
 @click.option("--force", is_flag=True,
               help="Overwrite a plan even though its winding journal has steps done (the journal is kept).")

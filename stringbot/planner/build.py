@@ -99,8 +99,8 @@ def plan_picture(path, *, pins=300, frame="circle", size=None, crop=None, lines=
     polish_passes : int or None
         Residual and euler: passes of inserts and deletes after the polish
         (:func:`~stringbot.planner.methods.polish.move_passes`; slower, a
-        little better); 0: none; None: the method's (euler: 1 with
-        ``lines="auto"``; else none).
+        little better); 0: none; None: the method's (none; euler deletes
+        once after the polish anyway with ``lines="auto"``).
     preview : int or None
         The side of the drawing as woven the caller will make
         (:func:`~stringbot.planner.model.render.draw_woven`, black on white): a

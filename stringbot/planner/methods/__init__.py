@@ -157,7 +157,7 @@ METHODS = {m.name: m for m in (
            gray="luminance", picks_start=True, stops_itself=True),  # the piece is seen by its luminance
     Method("euler", "a chord set chosen with no thread to follow (relaxed densities), made one thread, then polished",
            run="stringbot.planner.methods.euler:run", knobs=("polish",), gray="luminance",
-           picks_start=True, stops_itself=True, polish_passes=1),
+           picks_start=True, stops_itself=True),
     Method("fitness", "the paper's method", run="stringbot.planner.methods.fitness:run",
            knobs=("disconnected", "style", "beta", "gamma", "T")),
     Method("greedy", "ThreadTone as published", run="stringbot.planner.methods.greedy:plan_greedy",

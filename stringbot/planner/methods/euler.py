@@ -12,8 +12,14 @@ thread:
    minimises the error as the eye sees it (the picture's darkness minus
    ``D``, both blurred as ``stringbot score`` blurs them, squared, over the
    frame) by L-BFGS-B: :data:`ITERATIONS` iterations over all chords, then
-   the stages of :data:`SCHEDULE` over the chords above :data:`PRUNE`, each
-   adding ``lam * sum x (1 - x)``, which drives every density to 0 or 1.
+   the :data:`ROUNDS` over the active chords only (those above
+   :data:`ACTIVE`, and those under it whose slope over all chords says they
+   would grow: one product over all chords a round), then the stages of
+   :data:`SCHEDULE` over the chords above :data:`PRUNE`, each adding
+   ``lam * sum x (1 - x)``, which drives every density to 0 or 1.  The
+   sparse products are float32 (the coverage is one CSR pattern, chords x
+   pixels, and a width per chord), over 2000 chords and more in two halves
+   (a second thread takes one where there are two cores: the same sums).
    The chords are then taken in order of density, as many as give the
    lowest error once made one thread (:data:`SCAN`, :func:`choose_chords`).
 2. *One thread* (:func:`make_trail`, :func:`euler_sequence`).  A thread is
@@ -25,7 +31,8 @@ thread:
    chord, and the trail is walked (Hierholzer).  A chord joins two pins, so
    no pin comes twice in a row.
 3. *The polish* (:mod:`.polish`, on two cores where there are two, as the
-   default method's) of that sequence against the picture as woven.
+   default method's) of that sequence against the picture as woven, then
+   :data:`DELETES` pass of deletes (with ``--lines auto``).
 
 Measured against the default in docs/planner.md ("The euler method").
 """
@@ -40,23 +47,33 @@ from . import Outcome
 log = logging.getLogger(__name__)
 
 __all__ = ["run", "coverage", "relaxed_densities", "choose_chords", "pair_odd", "make_trail", "euler_sequence",
-           "GRID", "ITERATIONS", "SCHEDULE", "PRUNE", "SCAN"]
+           "GRID", "ITERATIONS", "ROUNDS", "ACTIVE", "SPLIT", "SCHEDULE", "PRUNE", "DELETES", "SCAN"]
 
 #: side of the grid the densities are solved on (the polish's grid)
 GRID = 256
-#: L-BFGS-B iterations over all chords, before the chords under :data:`PRUNE` are left out
-ITERATIONS = 40
+#: L-BFGS-B iterations over all chords, from 0.02 each
+ITERATIONS = 10
+#: then rounds of as many iterations over the active chords (above :data:`ACTIVE`, or growing)
+ROUNDS = (40, 40, 40)
+#: chords at or under this density are active in a round only if their slope is negative
+ACTIVE = 1e-3
+#: chords from which the products over them run in two halves (on two threads where there are two cores)
+SPLIT = 2000
 #: then ``(lam, iterations)`` stages with ``lam * sum x (1 - x)`` added (units of the summed squared error)
 SCHEDULE = ((0.02, 20), (0.1, 20), (0.4, 20))
 #: chords under this density after the first iterations are left out of the stages
 PRUNE = 0.01
+#: passes of deletes (``a-p-c -> a-c``, kept where the piece as woven gets better) after the polish: the
+#: pairing's extra chords are what they take out
+DELETES = 1
 #: chord counts tried: from ``SCAN[0]`` to ``SCAN[1]`` times the chords over 0.5, ``SCAN[2]`` of them
 SCAN = (0.8, 2.0, 13)
 
 
 def coverage(space, size, width_px):
-    """``(A, A^T)``: each chord's coverage of each pixel of a ``size``-px grid (its length in the pixel
-    times the thread's width, at most 1), pixels x chords and chords x pixels, CSR."""
+    """``(AT, w)``: which pixels of a ``size``-px grid each chord covers, chords x pixels, CSR of float32
+    ones, and each chord's coverage of them (its length in a pixel times the thread's width, at most
+    1), float32: the coverage matrix ``A`` (pixels x chords) is ``AT^T diag(w)``."""
     import scipy.sparse as sp
 
     from ..model.chords import chord_pixels, pin_pixels
@@ -65,44 +82,99 @@ def coverage(space, size, width_px):
     rc = pin_pixels(space.pin_xy, size).astype(np.float64)
     d = rc[space.ends[:, 1]] - rc[space.ends[:, 0]]
     per = np.hypot(d[:, 0], d[:, 1]) / np.maximum(np.abs(d).max(axis=1), 1.0)  # length per pixel step
-    vals = np.repeat(np.minimum(per * width_px, 1.0), np.diff(indptr))
-    AT = sp.csr_matrix((vals, indices, indptr), shape=(space.m, size * size))
-    return AT.T.tocsr(), AT
+    AT = sp.csr_matrix((np.ones(len(indices), dtype=np.float32), indices, indptr), shape=(space.m, size * size),
+                       copy=False)
+    return AT, np.minimum(per * width_px, 1.0).astype(np.float32)
 
 
-def objective(A, AT, target, weights, sigma):
-    """``f(x) -> (E, grad)``: ``E = || B (s (t - D)) ||^2`` with ``D = 1 - exp(-A x)``, ``B`` the
-    Gaussian blur of ``sigma`` px, ``s`` the square root of the weights, and its gradient."""
+class _Products:
+    """``A x`` and ``A^T y`` in float32 (``A = AT^T diag(w)``, :func:`coverage`), with ``AT``'s rows in two
+    halves that ``threads`` (a ``ThreadPoolExecutor``, or None) takes one of: the same sums either way
+    (scipy's sparse products let go of the interpreter's lock while they run)."""
+
+    def __init__(self, AT, w, threads=None):
+        self.AT, self.w = AT, np.asarray(w, dtype=np.float32)
+        m = AT.shape[0]
+        self.threads = threads if m >= SPLIT else None
+        self.halves = [_rows(AT, 0, m // 2), _rows(AT, m // 2, m)] if m >= SPLIT else [AT]
+
+    def _both(self, fn):
+        if self.threads is None or len(self.halves) == 1:
+            return [fn(h) for h in self.halves]
+        first = self.threads.submit(fn, self.halves[0])
+        second = fn(self.halves[1])
+        return [first.result(), second]
+
+    def darkness(self, x):
+        """``A x`` (float32, one per pixel); of the chords' own rows where few are nonzero."""
+        x = np.asarray(x)
+        nz = np.flatnonzero(x)
+        if len(nz) * 4 < len(x):
+            return self.AT[nz].T @ (self.w[nz] * x[nz].astype(np.float32))
+        v = self.w * x.astype(np.float32)
+        cut = self.halves[0].shape[0]
+        parts = self._both(lambda h: h.T @ (v[:cut] if h is self.halves[0] else v[cut:]))
+        return parts[0] if len(parts) == 1 else parts[0] + parts[1]
+
+    def back(self, y):
+        """``A^T y`` (float32, one per chord)."""
+        y = np.asarray(y, dtype=np.float32)
+        parts = self._both(lambda h: h @ y)
+        return self.w * (parts[0] if len(parts) == 1 else np.concatenate(parts))
+
+
+def _rows(AT, a, b):
+    """Rows ``a:b`` of the CSR ``AT`` sharing its data (no copy but of the row pointers)."""
+    import scipy.sparse as sp
+
+    p = AT.indptr
+    return sp.csr_matrix((AT.data[p[a]:p[b]], AT.indices[p[a]:p[b]], p[a:b + 1] - p[a]), shape=(b - a, AT.shape[1]),
+                         copy=False)
+
+
+def objective(AT, w, target, weights, sigma, *, threads=None):
+    """``f(x) -> (E, grad)``: ``E = || B (s (t - D)) ||^2 = <u, B^2 u>`` (``u = s (t - D)``) with
+    ``D = 1 - exp(-A x)`` (``A = AT^T diag(w)``, :func:`coverage`, over the chords of ``AT``'s rows),
+    ``B`` the Gaussian blur of ``sigma`` px, ``s`` the square root of the weights, and its gradient;
+    ``f.value(x)`` is ``E`` alone.  The sparse products are in float32 (:class:`_Products`, on
+    ``threads``), the rest in float64."""
     from scipy.ndimage import gaussian_filter
 
     m = target.shape[0]
     s = np.sqrt(weights).ravel()
     t = target.ravel()
+    prod = _Products(AT, w, threads)
 
-    def blur(v):
-        return gaussian_filter(v.reshape(m, m), sigma, mode="constant").ravel()
+    def blur2(v):  # B^2 = the blur of sigma * sqrt(2) (to 1e-5 of the peak): one pass for E and its slope
+        return gaussian_filter(v.astype(np.float32).reshape(m, m), sigma * np.sqrt(2.0), mode="constant").ravel()
+
+    def value(x):
+        ex = np.exp(-prod.darkness(x).astype(np.float64))
+        u = s * (t - (1.0 - ex))
+        bu = blur2(u)
+        return float(u @ bu), bu, ex
 
     def f(x):
-        ex = np.exp(-(A @ x))
-        r = blur(s * (t - (1.0 - ex)))
-        return float(r @ r), AT @ (ex * (-2.0 * s * blur(r)))
+        E, bu, ex = value(x)
+        return E, prod.back(ex * (-2.0 * s * bu)).astype(np.float64)
+    f.value = lambda x: value(x)[0]
     return f
 
 
 def _solve(f, x0, iterations, lam=0.0):
     """``x`` after L-BFGS-B on ``f`` plus ``lam * sum x (1 - x)``, from ``x0``."""
-    from scipy.optimize import minimize
+    from scipy.optimize import Bounds, minimize
 
     def fp(y):
         E, g = f(y)
         return E + lam * float(np.sum(y * (1.0 - y))), g + lam * (1.0 - 2.0 * y)
-    res = minimize(fp if lam else f, x0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * len(x0),
+    res = minimize(fp if lam else f, x0, jac=True, method="L-BFGS-B", bounds=Bounds(0.0, 1.0),
                    options={"maxiter": int(iterations)})
     return res.x
 
 
-def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITERATIONS, schedule=SCHEDULE,
-                      prune=PRUNE):
+def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITERATIONS, rounds=ROUNDS,
+                      schedule=SCHEDULE, prune=PRUNE, threads=None):
     """The chords' densities (see the module notes): ``(x, f)``, ``f`` the objective over all chords.
 
     Parameters
@@ -116,17 +188,31 @@ def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITE
         The eye's blur in grid pixels.
     iterations : int
         Over all chords, from 0.02 each.
+    rounds : sequence of int
+        Then rounds of as many iterations over the active chords: those above :data:`ACTIVE` and
+        those below whose slope says they would grow (all chords' slope, after each round).
     schedule : sequence of (float, int)
         Then ``(lam, iterations)`` stages over the chords above ``prune``.
     prune : float
+    threads : concurrent.futures.ThreadPoolExecutor, optional
+        One thread to take half of every product over all chords (the plan is the same without).
     """
-    A, AT = coverage(space, target.shape[0], width_px)
-    f = objective(A, AT, target, weights, sigma)
+    AT, w = coverage(space, target.shape[0], width_px)
+    f = objective(AT, w, target, weights, sigma, threads=threads)
+
+    def over(cols, x0, its, lam=0.0):
+        fc = objective(AT[cols], w[cols], target, weights, sigma, threads=threads)
+        x = np.zeros(space.m)
+        x[cols] = _solve(fc, x0[cols], its, lam)
+        return x
+
     x = _solve(f, np.full(space.m, 0.02), iterations)
+    for its in rounds:
+        grow = (x <= ACTIVE) & (f(x)[1] < 0.0)
+        x = over(np.flatnonzero((x > ACTIVE) | grow), x, its)
     if schedule:
         cols = np.flatnonzero(x > prune)
-        sub = AT[cols]
-        fc = objective(sub.T.tocsr(), sub, target, weights, sigma)
+        fc = objective(AT[cols], w[cols], target, weights, sigma, threads=threads)
         xc = x[cols]
         for lam, its in schedule:
             xc = _solve(fc, xc, its, lam)
@@ -146,7 +232,7 @@ def choose_chords(space, x, f, *, scan=SCAN, start=None, lines=None):
         v = np.zeros(space.m)
         v[order[:k]] = 1.0
         count = make_trail(space, v.astype(np.int64), f(v)[1], start=start)
-        return f(count.astype(np.float64))[0], count, k
+        return f.value(count.astype(np.float64)), count, k
 
     if lines is not None:
         k = min(int(lines), space.m)
@@ -264,6 +350,8 @@ def euler_sequence(space, count, *, start=None):
 def run(job):
     """``--method euler`` through the methods' contract (:mod:`stringbot.planner.methods`): the chord set,
     its thread, then the polish of :mod:`.residual`'s (two processes where there are two cores)."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from ...errors import BadInput
     from ..model.chords import frame_mask
     from ..model.scoring import WOVEN_SIGMA, WOVEN_SIZE
@@ -275,6 +363,7 @@ def run(job):
     k = job.knobs
     space, model = job.space, job.model
     polish, passes = k["polish"], k.get("polish_passes") or 0
+    deletes = DELETES if polish and job.lines == "auto" else 0  # with --lines N the line count stays
     target = np.where(job.mask, 1.0 - job.picture.gray / 255.0, 0.0)
     if float(target.max(initial=0.0)) < 1.0 / 255:
         raise BadInput("euler found nothing to draw: the picture is blank inside the frame; "
@@ -283,18 +372,21 @@ def run(job):
     helper = None
     if polish and two_cores():  # the helper lays out the polish's chords while the densities are solved
         preview = k.get("preview")
-        drawing = None if preview is None or passes else TwinDrawing(preview, model)
+        drawing = None if preview is None or passes or deletes else TwinDrawing(preview, model)
         helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing, patience=0)
+    threads = ThreadPoolExecutor(1) if two_cores() else None  # after the fork: half of each product over all chords
     try:
         t0 = time.perf_counter()
         m = min(GRID, target.shape[0])
         inside = frame_mask(m, space.frame)
         x, f = relaxed_densities(space, np.where(inside, resize_square(target, m), 0.0),
                                  np.where(inside, resize_square(w, m), 0.0), model.width_px(m),
-                                 sigma=WOVEN_SIGMA * m / WOVEN_SIZE)
+                                 sigma=WOVEN_SIGMA * m / WOVEN_SIZE, threads=threads)
         t1 = time.perf_counter()
         lines = None if job.lines == "auto" else int(job.lines)
         count, chosen = choose_chords(space, x, f, start=job.start_pin, lines=lines)
+        if threads is not None:
+            threads.shutdown()
         seq = euler_sequence(space, count, start=job.start_pin)
         if lines is not None:
             seq = seq[:lines + 1]
@@ -309,19 +401,22 @@ def run(job):
         if helper is not None and polish:
             for a, b in zip(seq[:-1], seq[1:]):
                 helper.add((int(a), int(b)))
-            done = helper.finish(seq, polish, passes)
+            done = helper.finish(seq, polish, passes, deletes)
             drawings = None if done is None else helper.drawing
         if done is None:
             woven = woven_canvas(target, w, space, model)
             woven.build(list(zip(seq[:-1], seq[1:])))
-            done = polish_plan(woven, seq, space, budget=polish, passes=passes)
+            done = polish_plan(woven, seq, space, budget=polish, passes=passes, deletes=deletes)
         seq, stats["polish"] = done
         stats["polish_seconds"] = round(time.perf_counter() - t2, 3)
     finally:
+        if threads is not None:
+            threads.shutdown()
         if helper is not None:
             helper.close()
     log.info("euler: %d chords chosen, %d added, %d left out; %d lines after the polish", stats["chords_chosen"],
              stats["chords_added"], stats["chords_left_out"], len(seq) - 1)
-    params = {"polish": polish, "polish_passes": passes, "grid": m, "iterations": ITERATIONS,
+    params = {"polish": polish, "polish_passes": passes, "polish_deletes": deletes, "grid": m,
+              "iterations": ITERATIONS, "rounds": list(ROUNDS), "active": ACTIVE,
               "schedule": [list(s) for s in SCHEDULE], "prune": PRUNE, "thread_px": round(model.width_px(k["size"]), 4)}
     return Outcome([int(p) for p in seq], params, stats, drawings=drawings)

@@ -320,7 +320,7 @@ def move_passes(canvas, seq, pin_lines, *, passes, budget):
     return {"inserted": inserted, "deleted": deleted}
 
 
-def polish_plan(canvas, seq, space, *, budget, passes=0, partner=None):
+def polish_plan(canvas, seq, space, *, budget, passes=0, deletes=0, partner=None):
     """Polish a pin sequence against the picture as woven (see the module notes).
 
     Parameters
@@ -334,6 +334,8 @@ def polish_plan(canvas, seq, space, *, budget, passes=0, partner=None):
     passes : int
         Passes of inserts and deletes after the reroutes (:func:`move_passes`), in this process
         once the partner is closed; 0: none.
+    deletes : int
+        Then passes of deletes alone (:func:`delete_pass`, ``budget`` pins each); 0: none.
     partner : callable, optional
         ``partner(canvas, seq, order, pin_lines)`` returns a partner for
         :func:`polish_pins` (a forked process: :func:`~stringbot.planner.methods.woven_helper.twin`),
@@ -345,7 +347,8 @@ def polish_plan(canvas, seq, space, *, budget, passes=0, partner=None):
     stats : dict
         ``tried``, ``rerouted``, ``woven_rms_before`` and ``woven_rms`` (the model's as-woven
         error, rms over the frame); with ``passes``, ``passes``, ``inserted``, ``deleted`` and
-        ``woven_rms_rerouted`` (the error before the passes).
+        ``woven_rms_rerouted`` (the error before the passes); with ``deletes``, ``delete_passes``,
+        ``deleted`` and ``woven_rms_rerouted``.
     """
     seq = [int(p) for p in seq]
     if len(seq) < 3 or budget <= 0:
@@ -365,9 +368,14 @@ def polish_plan(canvas, seq, space, *, budget, passes=0, partner=None):
         return round(float(np.sqrt(max(e, 0.0) / area)), 5)
 
     stats = {"tried": len(order), "rerouted": rerouted, "woven_rms_before": rms(e0)}
+    if passes > 0 or deletes > 0:
+        stats["woven_rms_rerouted"] = rms(canvas.error())
     if passes > 0:
-        stats.update(passes=int(passes), woven_rms_rerouted=rms(canvas.error()),
-                     **move_passes(canvas, seq, pin_lines, passes=passes, budget=budget))
+        stats.update(passes=int(passes), **move_passes(canvas, seq, pin_lines, passes=passes, budget=budget))
+    if deletes > 0:
+        made = sum(delete_pass(canvas, seq, pin_lines, budget=budget) for _ in range(int(deletes)))
+        stats.update(delete_passes=int(deletes), deleted=stats.get("deleted", 0) + made)
+        log.info("polish: %d pins deleted in %d passes of deletes", made, deletes)
     stats["woven_rms"] = rms(canvas.error())
     log.info("polish: %d of %d pins rerouted; as-woven rms %.4f -> %.4f", rerouted, len(order),
              stats["woven_rms_before"], stats["woven_rms"])

@@ -349,15 +349,16 @@ class WovenHelper:
             self._send(("chords", np.asarray(self._pending, dtype=np.int32).reshape(-1, 2)))
             self._pending = []
 
-    def finish(self, seq, budget, passes=0):
-        """Polish ``seq`` in the helper (``passes`` of inserts and deletes after it, there alone).
+    def finish(self, seq, budget, passes=0, deletes=0):
+        """Polish ``seq`` in the helper (``passes`` of inserts and deletes, then ``deletes`` passes of
+        deletes, after it, there alone).
 
         Returns
         -------
         (seq, stats) as :func:`~stringbot.planner.methods.polish.polish_plan`, or None when the helper failed.
         """
         self._flush()
-        self._send(("polish", [int(p) for p in seq], int(budget), time.perf_counter(), int(passes)))
+        self._send(("polish", [int(p) for p in seq], int(budget), time.perf_counter(), int(passes), int(deletes)))
         out = None
         try:
             if not self.failed:
@@ -388,7 +389,7 @@ class WovenHelper:
 
 def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - runs in the child
     """The helper: stamp chords as they come, and in between lay out the polish's chord points and
-    find the drawn chords' grid pixels; polish on ``("polish", seq, budget, sent, passes)``."""
+    find the drawn chords' grid pixels; polish on ``("polish", seq, budget, sent, passes, deletes)``."""
     from .polish import polish_lines, polish_plan
 
     canvas = make_canvas()
@@ -427,7 +428,7 @@ def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - r
             canvas.draw(chosen[drawn:upto])
             drawn = upto
         elif msg[0] == "polish":
-            _, seq, budget, sent, passes = msg
+            _, seq, budget, sent, passes, deletes = msg
             t = time.perf_counter()
             final = list(zip(seq[:-1], seq[1:]))
             if final[:drawn] == chosen[:drawn]:
@@ -445,7 +446,8 @@ def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - r
                 return mate
 
             try:
-                seq, stats = polish_plan(canvas, seq, space, budget=budget, passes=passes, partner=partner)
+                seq, stats = polish_plan(canvas, seq, space, budget=budget, passes=passes, deletes=deletes,
+                                         partner=partner)
             except BaseException:
                 for pid in twins:  # gone or going (an interrupt reaches the twin too)
                     os.waitpid(pid, 0)
