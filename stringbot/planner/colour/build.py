@@ -61,7 +61,8 @@ def auto_colour_lines(gray, mask, background, colors):
 def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=COLOUR_DEFAULTS["size"], crop=None,
                 lines="auto", start_pin=None, model=None, cache=True, spool_changes=COLOUR_DEFAULTS["spool_changes"],
                 min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, face="off",
-                sharpen=COLOUR_DEFAULTS["sharpen"], texture=COLOUR_DEFAULTS["texture"], fine=COLOUR_DEFAULTS["fine"]):
+                sharpen=COLOUR_DEFAULTS["sharpen"], texture=COLOUR_DEFAULTS["texture"], fine=COLOUR_DEFAULTS["fine"],
+                polish=False):
     """Plan a colour thread painting.
 
     Parameters
@@ -101,6 +102,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         The weight of each pixel's texture (its variance of luminance over its samples) in the plan's
         error (:class:`.model.Piece`; 0: the mean colour alone); the draft orders the colours without it,
         and on a dark board (luminance under a half) the plan too.
+    polish : bool
+        With a face: polish the plan by the frame's error where the face's does not rise
+        (:func:`.polish.frame_polish`; False: the plan as laid).
     fine : float
         The weight of the fine luminance (:class:`.model.Fine`: the picture's luminance matched on a grid
         twice as fine as ``size``; 0: none); in the plan only, and not on a dark board.
@@ -208,6 +212,11 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         draft = runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER, texture=0.0, weight=plain)
         runs = plan_runs(draft, lambda: work, k, spool_changes=spool_changes, thicker=DRAFT_THICKER,
                          min_run=min_run, first=start_pin)
+    polished = None
+    model_err = work.piece.error()
+    if found is not None and polish:    # --face: the frame polished by its own error, the face's not rising
+        polished = _polish(work if grid != size else work.fresh(), runs, weights_at, size, weight, plain, fine,
+                           lay=grid == size, gray=np.asarray(pic.gray, dtype=np.float64).ravel() / 255.0)
     layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]
     used = {lay.color for lay in layers}
     unused = [c for c in colors if c not in used]
@@ -237,9 +246,29 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
              "colors": per_colour, "unused": unused,
              **({"palette": {"reach": picked.reach, "bare": round(picked.bare, 3), "why_fewer": picked.why_fewer}}
                 if picked is not None else {}), "runs": len(layers), "spool_changes": len(layers) - 1,
-             "model_error_start": round(start_err, 1), "model_error": round(work.piece.error(), 1),
+             "model_error_start": round(start_err, 1), "model_error": round(model_err, 1),
+             **({"polish": polished} if polished is not None else {}),
              "setup_seconds": round(t_setup - t0, 3), "seconds": round(time.perf_counter() - t0, 3)}
     # pin_xy as the plan file holds it (6 decimals): the preview drawn from this plan is the one any reader draws
     return Plan.from_layers(layers, background=background, pins=pins, frame=frame, pin_xy=np.round(space.pin_xy, 6),
                             crop=pic.crop, method="colour", parameters=params, source=pic.source, stats=stats,
                             diameter_mm=model.diameter_mm, thread_mm=model.thread_mm)
+
+
+def _polish(work, runs, weights_at, size, weight, plain, fine, *, lay=False, gray=None):
+    """The frame's polish of a ``--face`` plan (:func:`.polish.frame_polish`) on ``work``, the runner that laid
+    ``runs`` (``lay``: a bare one, they are laid on it first); its figures."""
+    from .polish import frame_polish
+
+    for k, seq in runs if lay else ():
+        for a, b in zip(seq[:-1], seq[1:]):
+            work.piece.lay(k, a, b)
+            work.laid[k, work.space.index[a, b]] = True
+    frame = weights_at(size, plain).ravel()
+    face = weights_at(size, weight).ravel() - frame
+    kw = {}
+    if work.piece.fine is not None:
+        two = 2 * size
+        ff = weights_at(two, plain).ravel()
+        kw = dict(fine=fine, fine_frame=ff, fine_face=weights_at(two, weight).ravel() - ff)
+    return frame_polish(work, runs, frame=frame, face=face, gray=gray, **kw)
