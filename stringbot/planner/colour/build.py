@@ -35,6 +35,10 @@ DRAFT_SAMPLES = 0.5
 #: the draft's thread is this many times as wide, each of its chords standing for as many of the plan's: a
 #: fifth less CPU (chelsea 4.7 -> 3.8 s, coffee 6.8 -> 5.4 s at Prem-Dharshan's counts), the same quality
 DRAFT_THICKER = 2.0
+#: --face: the plan's target is sharpened this much more over the face (:func:`.model.sharpened`; times the
+#: face's soft-edged ellipse, 1 inside): the face's blurred SSIM +0.004 / +0.003 / +0.005 / +0.005 on the four
+#: portraits (the mean of three starts), the frame's -0.001 / +0.001 / +0.001 / +0.003 (docs/planner.md, "Faces")
+FACE_SHARPEN = 4.0
 
 
 def draft_size(size):
@@ -42,6 +46,16 @@ def draft_size(size):
     return min(int(size), max(64, int(size) // 2))
 #: most spool changes a plan may be given
 MAX_SPOOL_CHANGES = 500
+
+
+def _face_share(weight, plain):
+    """Where the face's extra weight lies, 0..1: ``weight / plain - 1`` over its most (the ellipse's inside)."""
+    from ..picture.face import FACE_WEIGHT
+
+    weight = np.asarray(weight, np.float64)
+    plain = np.ones_like(weight) if plain is None else np.broadcast_to(np.asarray(plain, np.float64), weight.shape)
+    extra = np.divide(weight, plain, out=np.ones_like(weight), where=plain > 0) - 1.0
+    return np.clip(extra / FACE_WEIGHT, 0.0, 1.0) if FACE_WEIGHT > 0 else np.zeros_like(weight)
 
 
 def auto_colour_lines(gray, mask, background, colors):
@@ -61,8 +75,7 @@ def auto_colour_lines(gray, mask, background, colors):
 def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", size=COLOUR_DEFAULTS["size"], crop=None,
                 lines="auto", start_pin=None, model=None, cache=True, spool_changes=COLOUR_DEFAULTS["spool_changes"],
                 min_run=COLOUR_DEFAULTS["min_run"], weight=None, picture=None, rng=None, face="off",
-                sharpen=COLOUR_DEFAULTS["sharpen"], texture=COLOUR_DEFAULTS["texture"], fine=COLOUR_DEFAULTS["fine"],
-                polish=False):
+                sharpen=COLOUR_DEFAULTS["sharpen"], texture=COLOUR_DEFAULTS["texture"], fine=COLOUR_DEFAULTS["fine"]):
     """Plan a colour thread painting.
 
     Parameters
@@ -102,9 +115,6 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         The weight of each pixel's texture (its variance of luminance over its samples) in the plan's
         error (:class:`.model.Piece`; 0: the mean colour alone); the draft orders the colours without it,
         and on a dark board (luminance under a half) the plan too.
-    polish : bool
-        With a face: polish the plan by the frame's error where the face's does not rise
-        (:func:`.polish.frame_polish`; False: the plan as laid).
     fine : float
         The weight of the fine luminance (:class:`.model.Fine`: the picture's luminance matched on a grid
         twice as fine as ``size``; 0: none); in the plan only, and not on a dark board.
@@ -192,7 +202,10 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     for what, v in (("texture", texture), ("fine", fine)):
         if not (isinstance(v, (int, float)) and 0 <= v <= 1e6):
             raise BadInput(f"{what} {v!r}; expected 0..1000000")
-    target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
+    target = draft_target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
+    if found is not None and FACE_SHARPEN:  # --face: the plan's target (not the draft's) sharpened more over the face
+        target = sharpened(pic.rgb, amount=float(sharpen) + FACE_SHARPEN * _face_share(weight, plain),
+                           sigma=SHARPEN[1])
     grid = draft_size(size)
     # the texture term is measured on light boards; on a dark one it stopped a light thread's moon at night after
     # 8 lines (tests/test_outputs_ours.py): there the mean colour alone (and the plan records the weight used)
@@ -205,18 +218,13 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
     if grid == size:
         runs = plan_runs(work, None, k, spool_changes=spool_changes, min_run=min_run, first=start_pin)
     else:
-        rgb = np.stack([resize_square(target[..., c], grid) for c in range(3)], axis=-1)
+        rgb = np.stack([resize_square(draft_target[..., c], grid) for c in range(3)], axis=-1)
         # the draft orders the colours by their mean alone (the texture there changed the order, not the SSIM),
         # and without the face's weights (--face: the schedule they gave cost the frame, Grace Hopper's blurred
         # SSIM -0.034 -> +0.005 against the plan without --face; docs/planner.md, "Faces", "In colour")
         draft = runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER, texture=0.0, weight=plain)
         runs = plan_runs(draft, lambda: work, k, spool_changes=spool_changes, thicker=DRAFT_THICKER,
                          min_run=min_run, first=start_pin)
-    polished = None
-    model_err = work.piece.error()
-    if found is not None and polish:    # --face: the frame polished by its own error, the face's not rising
-        polished = _polish(work if grid != size else work.fresh(), runs, weights_at, size, weight, plain, fine,
-                           lay=grid == size, gray=np.asarray(pic.gray, dtype=np.float64).ravel() / 255.0)
     layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]
     used = {lay.color for lay in layers}
     unused = [c for c in colors if c not in used]
@@ -233,6 +241,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
               "colors": colors, "background": background, "spool_changes": spool_changes, "min_run": min_run,
               "draft_size": draft_size(size), "sharpen": float(sharpen),
               "texture": texture, "fine": fine, "face": found and found.to_record(),
+              **({"face_sharpen": FACE_SHARPEN} if found is not None else {}),
               "mono_lines_rule": auto_lines(pic.gray, mask)}
     per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
                       "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c
@@ -246,29 +255,9 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
              "colors": per_colour, "unused": unused,
              **({"palette": {"reach": picked.reach, "bare": round(picked.bare, 3), "why_fewer": picked.why_fewer}}
                 if picked is not None else {}), "runs": len(layers), "spool_changes": len(layers) - 1,
-             "model_error_start": round(start_err, 1), "model_error": round(model_err, 1),
-             **({"polish": polished} if polished is not None else {}),
+             "model_error_start": round(start_err, 1), "model_error": round(work.piece.error(), 1),
              "setup_seconds": round(t_setup - t0, 3), "seconds": round(time.perf_counter() - t0, 3)}
     # pin_xy as the plan file holds it (6 decimals): the preview drawn from this plan is the one any reader draws
     return Plan.from_layers(layers, background=background, pins=pins, frame=frame, pin_xy=np.round(space.pin_xy, 6),
                             crop=pic.crop, method="colour", parameters=params, source=pic.source, stats=stats,
                             diameter_mm=model.diameter_mm, thread_mm=model.thread_mm)
-
-
-def _polish(work, runs, weights_at, size, weight, plain, fine, *, lay=False, gray=None):
-    """The frame's polish of a ``--face`` plan (:func:`.polish.frame_polish`) on ``work``, the runner that laid
-    ``runs`` (``lay``: a bare one, they are laid on it first); its figures."""
-    from .polish import frame_polish
-
-    for k, seq in runs if lay else ():
-        for a, b in zip(seq[:-1], seq[1:]):
-            work.piece.lay(k, a, b)
-            work.laid[k, work.space.index[a, b]] = True
-    frame = weights_at(size, plain).ravel()
-    face = weights_at(size, weight).ravel() - frame
-    kw = {}
-    if work.piece.fine is not None:
-        two = 2 * size
-        ff = weights_at(two, plain).ravel()
-        kw = dict(fine=fine, fine_frame=ff, fine_face=weights_at(two, weight).ravel() - ff)
-    return frame_polish(work, runs, frame=frame, face=face, gray=gray, **kw)

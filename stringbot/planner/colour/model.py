@@ -49,7 +49,7 @@ import numpy as np
 
 from ..model.union import UnionStamp, fine_per_pixel, unique
 from ..picture.read import LUMINANCE
-from ..picture.resample import unsharp
+from ..picture.resample import gaussian_blur, unsharp
 from .palette import hex_to_rgb, lab, to_linear, to_srgb
 
 __all__ = ["Piece", "Fine", "chord_weights_px", "linear_colors", "luminance", "sharpened", "LIGHTNESS", "SHARPEN",
@@ -80,7 +80,8 @@ def luminance(linear_rgb):
 
 
 def sharpened(rgb, *, amount=SHARPEN[0], sigma=SHARPEN[1]):
-    """sRGB picture (m, m, 3) in [0, 1], its luminance sharpened: ``y + amount (y - blur(y))`` in linear light.
+    """sRGB picture (m, m, 3) in [0, 1], its luminance sharpened: ``y + amount (y - blur(y))`` in linear light
+    (``amount`` a float, or one per pixel, shape (m, m): ``--face`` sharpens the face more).
 
     Each pixel's linear RGB is scaled by its sharpened luminance over its own
     (clipped to [0, 1]): the lightness steepens at edges, the colour stays.
@@ -90,11 +91,13 @@ def sharpened(rgb, *, amount=SHARPEN[0], sigma=SHARPEN[1]):
     target puts them on the edges (the eye's stripes, rims, whiskers) rather
     than spreading them evenly over the pixels beside them.
     """
-    if amount <= 0:
+    amount = np.asarray(amount, dtype=np.float64)
+    if np.all(amount <= 0):
         return np.asarray(rgb, dtype=np.float64)
     lin = to_linear(rgb)
     y = luminance(lin)
-    ys = unsharp(y, amount=amount, sigma=sigma)
+    ys = (unsharp(y, amount=float(amount), sigma=sigma) if amount.ndim == 0 else
+          np.clip(y + amount * (y - gaussian_blur(y, sigma)), 0.0, 1.0))
     return to_srgb(lin * (ys / np.maximum(y, 1e-6))[..., None])
 
 
@@ -290,56 +293,3 @@ class Piece:
         if self.fine is not None:
             out += float((self.fine.weight * (_gray(self.u_fine) - self.fine.gray) ** 2).sum())
         return out
-
-    def retop(self, samples, new, *, refresh=True):
-        """Samples ``samples`` (distinct) show colour ``new`` (0: the board, ``k + 1``: colour ``k``) from now on,
-        whatever they showed (a thread taken off, :mod:`.polish`); ``refresh``: False leaves ``S`` (and
-        ``S2``) as they were (a change tried and undone)."""
-        if not len(samples):
-            return
-        new = np.asarray(new, dtype=np.uint8)
-        old = self.top[samples]
-        self.top[samples] = new
-        cells, inv = unique(self.stamp.cells(samples), self._mark)
-        dc = (self.palette[new] - self.palette[old]) * self.per_sample
-        for c in range(3):
-            self.u[cells, c] += np.bincount(inv, weights=dc[:, c], minlength=len(cells))
-        self.y1[cells] += np.bincount(inv, weights=(self.lum[new] - self.lum[old]) * self.per_sample,
-                                      minlength=len(cells))
-        self.y2[cells] += np.bincount(inv, weights=(self.lum[new] ** 2 - self.lum[old] ** 2) * self.per_sample,
-                                      minlength=len(cells))
-        if self.fine is not None:
-            F, h = self.stamp.F, self.h
-            q, inv = unique((samples // (F * h)) * self.m2 + (samples % F) // h, self._mark2)
-            dc = (self.palette[new] - self.palette[old]) * (1.0 / (h * h))
-            for c in range(3):
-                self.u_fine[q, c] += np.bincount(inv, weights=dc[:, c], minlength=len(q))
-            if refresh:
-                self._refresh_fine(q)
-        if refresh:
-            self.refresh(cells)
-
-    def refresh_at(self, p, q=None):
-        """Recompute ``S`` at pixels ``p`` (and ``S2`` at fine cells ``q``, the cells of pixels ``p``)."""
-        if self.fine is not None and q is not None:
-            self._refresh_fine(q)
-        self.refresh(p)
-
-    def reweigh(self, weight, fine_weight=None):
-        """The pixels weighed ``weight`` from now on (and the fine cells ``fine_weight``, with :class:`Fine`);
-        ``S`` follows."""
-        self.weight = np.asarray(weight, dtype=np.float64).ravel()
-        if self.fine is not None and fine_weight is not None:
-            self.fine = Fine(self.fine.gray, fine_weight, self.fine.nominal)
-            self._refresh_fine(np.arange(self.m2 * self.m2))
-        for lo in range(0, self.n, 65536):
-            self.refresh(np.arange(lo, min(lo + 65536, self.n)))
-
-    def pixel_errors(self, p):
-        """Each of pixels ``p``'s error, unweighted: the squared CIELAB difference and the texture."""
-        d = lab(self.u[p]) - self.target_lab[p]
-        return (d * d) @ self.metric + self.texture * (self.y2[p] - self.y1[p] * self.y1[p])
-
-    def cell_errors(self, q):
-        """Each of fine cells ``q``'s squared difference of gray, unweighted (with :class:`Fine`)."""
-        return (_gray(self.u_fine[q]) - self.fine.gray[q]) ** 2
