@@ -192,8 +192,9 @@ def run(image, *, variants=False, shapes=False, start_pin=None):
     return out
 
 
-def run_colour(image, spec):
-    """Colour plans of ``image`` without and with ``--face``: their figures (as ``stringbot score``)."""
+def run_colour(image, spec, *, start_pin=None):
+    """Colour plans of ``image`` without and with ``--face`` (from ``start_pin``, None: the planner's own): their
+    figures (as ``stringbot score``)."""
     from stringbot.planner.colour.build import plan_colour
     from stringbot.planner.colour.palette import parse_colors
     from stringbot.planner.colour.render import SCORE_SIZE, colour_score, plan_layers
@@ -204,7 +205,7 @@ def run_colour(image, spec):
     out = {"image": Path(image).name, "box": [round(v, 1) for v in box], "plans": {}, "tiles": []}
     for name in ("off", "on"):
         t = time.perf_counter()
-        p = plan_colour(image, colors=parse_colors(spec), face=name)
+        p = plan_colour(image, colors=parse_colors(spec), face=name, start_pin=start_pin)
         pic = read_picture(image, size=SCORE_SIZE, crop=p.crop, gray="luminance")
         r = colour_score(plan_layers(p), p.pin_xy, pic.rgb, frame=p.frame, background=p.background,
                          thread_fraction=p.thread_model().fraction, face=box, crop=p.crop)
@@ -222,7 +223,7 @@ def main(argv=None):
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--variants", action="store_true", help="also the face's crop alone and its weights alone")
     ap.add_argument("--shapes", action="store_true", help="also the other face weight maps (SHAPES)")
-    ap.add_argument("--start-pin", type=int, help="every plan from this pin (as plan --start-pin; not with --colors)")
+    ap.add_argument("--start-pin", type=int, help="every plan from this pin (as plan --start-pin)")
     ap.add_argument("--starts", help="comma-separated start pins ('own': the planner's own), e.g. own,37,151: "
                     "each plan from each, and the differences --face on minus off averaged over them (not with "
                     "--colors, --sheet)")
@@ -240,7 +241,8 @@ def main(argv=None):
             return
         mean_table(runs)
         return
-    rows = [run_colour(im, a.colors) if a.colors else run(im, variants=a.variants, shapes=a.shapes, start_pin=a.start_pin)
+    rows = [run_colour(im, a.colors, start_pin=a.start_pin) if a.colors else
+            run(im, variants=a.variants, shapes=a.shapes, start_pin=a.start_pin)
             for im in a.images]
     if a.sheet:
         sheet(rows, a.sheet)

@@ -78,3 +78,29 @@ def test_a_bad_amount_is_refused(line_picture):
     with pytest.raises(BadInput, match="sharpen"):
         plan_colour(line_picture, colors=["#141414"], pins=60, size=48, lines=10, model=THICK, cache=False,
                     sharpen=-1)
+
+
+def test_an_amount_per_pixel_sharpens_each_pixel_by_its_own():
+    img = step()
+    amount = np.full(img.shape[:2], 2.0)
+    assert np.allclose(sharpened(img, amount=amount, sigma=1.0), sharpened(img, amount=2.0, sigma=1.0))
+    amount[:16] = 0.0                                     # the top half as it is, the bottom half sharpened
+    out = sharpened(img, amount=amount, sigma=1.0)
+    assert np.allclose(out[:16], img[:16])
+    assert np.allclose(out[16:], sharpened(img, amount=2.0, sigma=1.0)[16:])
+    assert np.array_equal(sharpened(img, amount=np.zeros(img.shape[:2])), img)
+
+
+def test_face_share_is_the_face_ellipse_over_any_importance():
+    from stringbot.planner.colour.build import _face_share
+    from stringbot.planner.picture.face import FACE_WEIGHT
+
+    face = np.ones((8, 8))
+    face[2:6, 2:6] = 1.0 + FACE_WEIGHT
+    face[2, 2] = 1.0 + FACE_WEIGHT / 2                    # the soft edge
+    assert np.allclose(_face_share(face, None)[3:6, 3:6], 1.0) and _face_share(face, None)[0, 0] == 0.0
+    assert np.isclose(_face_share(face, None)[2, 2], 0.5)
+    importance = np.full((8, 8), 0.5)
+    importance[0] = 0.0                                   # weighs nothing: no share there
+    share = _face_share(face * importance, importance)
+    assert np.allclose(share[1:], _face_share(face, None)[1:]) and (share[0] == 0).all()

@@ -49,7 +49,7 @@ import numpy as np
 
 from ..model.union import UnionStamp, fine_per_pixel, unique
 from ..picture.read import LUMINANCE
-from ..picture.resample import unsharp
+from ..picture.resample import gaussian_blur, unsharp
 from .palette import hex_to_rgb, lab, to_linear, to_srgb
 
 __all__ = ["Piece", "Fine", "chord_weights_px", "linear_colors", "luminance", "sharpened", "LIGHTNESS", "SHARPEN",
@@ -80,7 +80,8 @@ def luminance(linear_rgb):
 
 
 def sharpened(rgb, *, amount=SHARPEN[0], sigma=SHARPEN[1]):
-    """sRGB picture (m, m, 3) in [0, 1], its luminance sharpened: ``y + amount (y - blur(y))`` in linear light.
+    """sRGB picture (m, m, 3) in [0, 1], its luminance sharpened: ``y + amount (y - blur(y))`` in linear light
+    (``amount`` a float, or one per pixel, shape (m, m): ``--face`` sharpens the face more).
 
     Each pixel's linear RGB is scaled by its sharpened luminance over its own
     (clipped to [0, 1]): the lightness steepens at edges, the colour stays.
@@ -90,11 +91,13 @@ def sharpened(rgb, *, amount=SHARPEN[0], sigma=SHARPEN[1]):
     target puts them on the edges (the eye's stripes, rims, whiskers) rather
     than spreading them evenly over the pixels beside them.
     """
-    if amount <= 0:
+    amount = np.asarray(amount, dtype=np.float64)
+    if np.all(amount <= 0):
         return np.asarray(rgb, dtype=np.float64)
     lin = to_linear(rgb)
     y = luminance(lin)
-    ys = unsharp(y, amount=amount, sigma=sigma)
+    ys = (unsharp(y, amount=float(amount), sigma=sigma) if amount.ndim == 0 else
+          np.clip(y + amount * (y - gaussian_blur(y, sigma)), 0.0, 1.0))
     return to_srgb(lin * (ys / np.maximum(y, 1e-6))[..., None])
 
 
