@@ -143,3 +143,33 @@ def test_the_deletes_after_the_polish_shorten_the_thread_and_are_recorded(tmp_pa
     lines = p.stats["chords_chosen"] + p.stats["chords_added"] - p.stats["chords_left_out"]
     assert len(p.sequence) - 1 == lines - ps["deleted"]
     assert all(a != b for a, b in zip(p.sequence[:-1], p.sequence[1:]))
+
+
+def _dark_picture(size=101):
+    """A dark portrait-like picture: mostly dark gray with a light disc (a face) and a lighter band."""
+    y, x = np.mgrid[:size, :size]
+    g = np.full((size, size), 60.0)
+    g[(x - 0.5 * size) ** 2 + (y - 0.45 * size) ** 2 < (0.2 * size) ** 2] = 200.0
+    g[int(0.75 * size):int(0.85 * size), :] = 120.0
+    return g
+
+
+def test_a_dark_picture_does_not_run_every_chord_to_its_bound():
+    """On a dark picture L-BFGS-B's first steps from the uniform start can reach a flat, saturated region
+    (every chord near 1, the piece black); the densities are then solved again from the union's log."""
+    from stringbot.planner.methods import euler
+    from stringbot.planner.picture.resample import resize_square
+
+    m = 64
+    space = chord_space(80)
+    mask = frame_mask(m, "circle")
+    t = np.where(mask, 1 - resize_square(_dark_picture(), m) / 255.0, 0.0)
+    w = mask.astype(float)
+    AT, cw = euler.coverage(space, m, 0.3)
+    f = euler.objective(AT, cw, t, w, 0.5)
+    uniform = euler._solve(f, np.full(space.m, 0.02), 10)
+    assert euler._saturated(AT, cw, uniform, t, w)  # the trap this guards against, on this picture
+    x, f = relaxed_densities(space, t, w, 0.3, sigma=0.5, iterations=10, rounds=(20,), schedule=((0.1, 10),))
+    assert not euler._saturated(AT, cw, x, t, w)
+    assert f(x)[0] < 0.5 * f(uniform)[0]
+    assert x.sum() < 0.5 * space.m  # not every chord drawn

@@ -66,6 +66,8 @@ PRUNE = 0.01
 #: passes of deletes (``a-p-c -> a-c``, kept where the piece as woven gets better) after the polish: the
 #: pairing's extra chords are what they take out
 DELETES = 1
+#: the densities are solved again from :func:`_log_start` when their darkness exceeds the target's by this
+SATURATED = 0.1
 #: chord counts tried: from ``SCAN[0]`` to ``SCAN[1]`` times the chords over 0.5, ``SCAN[2]`` of them
 SCAN = (0.8, 2.0, 13)
 
@@ -173,6 +175,29 @@ def _solve(f, x0, iterations, lam=0.0):
     return res.x
 
 
+def _saturated(AT, w, x, target, weights, *, by=SATURATED):
+    """Whether the union's expectation ``1 - exp(-A x)`` is darker than the target by more than ``by`` on
+    the weighted mean: where the densities ran to their bound, the objective is flat (``exp(-A x)`` near
+    0) and L-BFGS-B stays there."""
+    d = 1.0 - np.exp(-_Products(AT, w).darkness(x).astype(np.float64))
+    wt = weights.ravel()
+    return float(wt @ (d - target.ravel())) > by * float(wt.sum())
+
+
+def _log_start(AT, w, target, weights, *, iterations=ITERATIONS, threads=None):
+    """Densities whose ``A x`` fits the union's log ``-ln(1 - t)`` (``t`` capped at 0.95) by weighted least
+    squares, in [0, 1]: a convex problem with no flat region, a start the relaxed objective cannot leave for
+    saturation at once."""
+    prod = _Products(AT, w, threads)
+    wt = weights.ravel().astype(np.float64)
+    L = -np.log1p(-np.minimum(target.ravel(), 0.95))
+
+    def g(x):
+        r = prod.darkness(x).astype(np.float64) - L
+        return float(wt @ (r * r)), 2.0 * prod.back(wt * r).astype(np.float64)
+    return _solve(g, np.zeros(AT.shape[0]), iterations)
+
+
 def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITERATIONS, rounds=ROUNDS,
                       schedule=SCHEDULE, prune=PRUNE, threads=None):
     """The chords' densities (see the module notes): ``(x, f)``, ``f`` the objective over all chords.
@@ -207,6 +232,9 @@ def relaxed_densities(space, target, weights, width_px, *, sigma, iterations=ITE
         return x
 
     x = _solve(f, np.full(space.m, 0.02), iterations)
+    if _saturated(AT, w, x, target, weights):  # a dark picture: the first steps ran every chord to 1
+        log.info("euler: the densities saturated from a uniform start; solving again from the union's log")
+        x = _solve(f, _log_start(AT, w, target, weights, threads=threads), iterations)
     for its in rounds:
         grow = (x <= ACTIVE) & (f(x)[1] < 0.0)
         x = over(np.flatnonzero((x > ACTIVE) | grow), x, its)
