@@ -150,6 +150,16 @@ def test_plan_face_on_a_small_astronaut_then_score(tmp_path, astronaut):
     assert 0 < f["ssim_face_blurred"] <= 1 and 0 < f["ssim_frame_blurred"] <= 1 and f["box"] == [r, c, h, w]
 
 
+def test_greedy_with_face_says_it_weighs_nothing(tmp_path, astronaut):
+    """Greedy (ThreadTone) weighs no pixel: --face only keeps the face in its crop, and the line says so."""
+    img = small(astronaut, tmp_path, 160)
+    code, stdout, err = run("plan", img, "-o", tmp_path / "g.json", *SMALL, "--lines", "100", "--face",
+                            "--method", "greedy")
+    assert code == 0, err
+    line = next(ln for ln in stdout.splitlines() if ln.startswith("face: found"))
+    assert "greedy weighs every pixel alike" in line and "three times" not in line
+
+
 def test_face_on_a_picture_without_one_is_refused(tmp_path, no_face):
     out = tmp_path / "d.json"
     code, _, err = run("plan", no_face, "-o", out, *SMALL, "--lines", "50", "--face")

@@ -99,6 +99,7 @@ def face_found_line(p, *, centred):
     """Say where the face of a plan made with ``--face`` was found (nothing without one)."""
     if p.parameters.get("face"):
         r, c, h, w = p.parameters["face"]["box"]
+        weighed = ("greedy weighs every pixel alike (the face is only kept in the crop)"
+                   if getattr(p, "method", None) == "greedy" else "the face weighs three times as much in the planner's error")
         click.echo(f"face: found at rows {r:.0f}-{r + h:.0f}, columns {c:.0f}-{c + w:.0f} of the picture; "
-                   f"{'the crop holds it, ' if centred else ''}the face weighs three "
-                   "times as much in the planner's error")
+                   f"{'the crop holds it, ' if centred else ''}{weighed}")
