@@ -164,7 +164,7 @@ def test_face_on_a_picture_without_one_is_refused(tmp_path, no_face):
     out = tmp_path / "d.json"
     code, _, err = run("plan", no_face, "-o", out, *SMALL, "--lines", "50", "--face")
     one_error_line(code, err, "no face found in")
-    assert "plan without --face" in err and not out.exists()
+    assert "plan with --face auto or without --face" in err and "--fit" not in err and not out.exists()
     with pytest.raises(BadInput, match="no face found"):
         plan_picture(no_face, pins=60, size=101, lines=50, face="on")
 

@@ -198,8 +198,8 @@ def face_for_plan(path, *, face="auto"):
     if found is None:
         if face == "on":
             raise BadInput(f"no face found in {str(path)!r} (the frontal-face cascade finds faces seen from the "
-                           f"front, at least {24 / DETECT_SIDE:.0%} of the picture's longer side); plan without "
-                           "--face, or choose the part to paint with --crop CX,CY,R or --fit")
+                           f"front, at least {24 / DETECT_SIDE:.0%} of the picture's longer side); plan with "
+                           "--face auto or without --face (and choose the part to paint with --crop CX,CY,R)")
         log.info("face: none found in %s; the crop and the weights are as without --face", path)
         return None
     log.info("face: found at rows %.0f-%.0f, columns %.0f-%.0f (%d votes)", found.row, found.row + found.height,
