@@ -14,7 +14,7 @@ from stringbot.planner import read_plan, write_plan
 from stringbot.planner.colour.build import plan_colour
 from stringbot.planner.colour.frames import colour_growth_frames
 from stringbot.planner.colour.render import PREVIEW_SAMPLES, plan_layers, to_uint8, woven_rgb
-from stringbot.planner.colour.runs import fit_schedule
+from stringbot.planner.colour.runs import fit_schedule, no_short_runs
 from stringbot.winding import Job, read_journal, wind_plan
 from stringbot.winding.resume import resume_plan
 
@@ -190,3 +190,17 @@ def test_a_resume_inside_the_run_of_a_colour_that_came_back_asks_for_no_thread(t
     assert not any("thread on at pin" in q for q in asked[before:])             # blue is on: the third run's
     check_layers(record, plan)
     assert read_journal(job.journal_path).finished
+
+
+def test_no_run_of_the_schedule_is_shorter_than_the_least_a_spool_change_is_worth():
+    """A run under the least (the draft's last, cut by its budget) joins its colour's nearest run, else the
+    run before it: the colour then has no run and the plan says it is unused; the lines are all kept."""
+    sched = [(0, 1660), (2, 100), (0, 4671), (2, 200), (1, 14)]
+    out = no_short_runs(sched, 100)
+    assert out == [(0, 1660), (2, 100), (0, 4671), (2, 214)]
+    assert sum(n for _, n in out) == sum(n for _, n in sched)
+    assert no_short_runs([(1, 30), (0, 500), (1, 400)], 100) == [(0, 500), (1, 430)]  # to its own colour
+    assert no_short_runs([(2, 20), (0, 500)], 100) == [(0, 520)]                       # the first: to the next
+    assert no_short_runs([(0, 40)], 100) == [(0, 40)]                                    # one run stays
+    assert no_short_runs(sched, 10) == sched                                             # none short: unchanged
+

@@ -77,7 +77,7 @@ def plan_colour_cmd(*, image, output, preview, colors, background, pins, mach, m
         click.echo(f"--colors auto:{asked}: {len(p.parameters['colors'])} thread(s): {why}")
     if s["unused"]:
         click.echo(f"unused: {colour_names(s['unused'])} (no run of it: it lowered the colour error nowhere, "
-                   "or the spool-change budget left it no run)")
+                   "or the spool-change budget left it no run, or its run would have been shorter than --min-run)")
     if mach is not None:
         for line in estimate_lines(p, mach):
             click.echo(line)

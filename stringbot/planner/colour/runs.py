@@ -16,6 +16,8 @@ the plan file); between two runs the maker changes the spool.  At most
    its place in the order; the last run of a colour goes only when there are
    more colours than runs.  The schedule does not end with the thread of most
    contrast with the board (its last run joins its run before, if it has one).
+   Scaled to the plan's lines, a run under ``min_run`` joins its colour's nearest
+   run, else the one before it (:func:`no_short_runs`).
 3. *The plan* (:func:`follow`, on the working grid): each run of the schedule
    in turn, for its share of the lines.  A run starts at an end of the chord
    of its colour that lowers the error most, anywhere on the frame, and goes
@@ -37,7 +39,7 @@ from ..progress import report
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Runner", "free_runs", "fit_schedule", "follow", "plan_runs", "RUN_DEFAULTS"]
+__all__ = ["Runner", "free_runs", "fit_schedule", "no_short_runs", "follow", "plan_runs", "RUN_DEFAULTS"]
 
 #: ``late``: the darkest thread's runs that start in the last this share of the lines join its run before
 #: (:func:`fit_schedule`)
@@ -238,6 +240,22 @@ def fit_schedule(runs, most, *, darkest=None, late=0.0):
     return [(k, n) for k, n in sched]
 
 
+def no_short_runs(schedule, least):
+    """``schedule`` ``[(colour, lines)]`` without runs of fewer than ``least`` lines (a spool change for a
+    few lines: the draft's last run, cut where its budget ended): the shortest goes first, its lines to
+    the nearest run of its colour, else to the run before it (after it, for the first); one run stays."""
+    sched = _tidy([[k, n] for k, n in schedule])
+    while len(sched) > 1 and min(n for _, n in sched) < least:
+        i = min(range(len(sched)), key=lambda j: (sched[j][1], j))
+        k, n = sched[i]
+        same = [j for j in range(len(sched)) if j != i and sched[j][0] == k]
+        to = min(same, key=lambda j: (abs(j - i), j)) if same else (i - 1 if i > 0 else 1)
+        sched[to][1] += n
+        del sched[i]
+        sched = _tidy(sched)
+    return [(k, n) for k, n in sched]
+
+
 def _tidy(sched):
     """Neighbouring runs of one colour joined, empty ones left out."""
     out = []
@@ -310,5 +328,6 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
     total = sum(n for _, n in schedule)
     if total:
         schedule = [(k, max(1, int(round(n * lines / total)))) for k, n in schedule]
+        schedule = no_short_runs(schedule, min(int(min_run), lines // (2 * draft.piece.K)))
     log.info("colour: the draft's %d runs fitted to %d: %s", len(runs), len(schedule), schedule)
     return follow(final() if final is not None else draft.fresh(), lines, schedule, first=first)
