@@ -36,8 +36,13 @@ Usage: python benchmarks/bench_face.py [--json] [--variants] [--shapes] [--start
 import argparse
 import contextlib
 import json
+import os
 import sys
 import time
+
+# as the CLI: one BLAS thread, set before numpy loads (the polishes' long dot products stall among
+# OpenBLAS's threads on a busy machine: a --face plan 80 s of CPU instead of 12)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -296,36 +296,15 @@ def _drawn(cls, n=48, m=64, seed=5):
     return canvas, chords, rng
 
 
-def test_the_unthreaded_estimates_are_the_woven_canvas_estimates():
-    """--face's polishes sum their estimates' quadratic term without BLAS (UnthreadedWoven, UnthreadedEye):
-    the same figures as WovenCanvas's and EyeError's, up to rounding."""
-    from stringbot.planner.methods.eye import EyeError
-    from stringbot.planner.methods.polish import UnthreadedEye, UnthreadedWoven
-    from stringbot.planner.methods.woven import WovenCanvas
-
-    plain, chords, rng = _drawn(WovenCanvas)
-    fast, _, _ = _drawn(UnthreadedWoven)
-    for _ in range(40):
-        out = [chords[int(rng.integers(len(chords)))]]
-        inn = [tuple(int(p) for p in rng.choice(48, 2, replace=False))]
-        assert fast.estimate(out, inn) == pytest.approx(plain.estimate(out, inn), rel=1e-9, abs=1e-12)
-        assert fast.delta(out, inn) == pytest.approx(plain.delta(out, inn), rel=1e-9, abs=1e-12)
-        assert fast.helps(out, inn) == plain.helps(out, inn)
-    t, w = rng.random((64, 64)), rng.random((64, 64))
-    a, b = EyeError(t, w, sigma=1.3), UnthreadedEye(t, w, sigma=1.3)
-    cp = np.unique(rng.integers(0, 64 * 64, 300))
-    dD = rng.normal(0, 0.1, len(cp))
-    assert b.change(cp, dD)[0] == pytest.approx(a.change(cp, dD)[0], rel=1e-9)
-    assert b.change(cp, dD, blur2=True)[0] == a.change(cp, dD, blur2=True)[0]
-
-
 def test_a_guarded_canvas_does_not_try_a_change_its_guard_would_undo():
     """Guarded.helps: the lead's estimate must fall and the guard's must not rise (a change the guard would
     undo is not made and undone)."""
-    from stringbot.planner.methods.polish import Guarded, UnthreadedEye, UnthreadedWoven
+    from stringbot.planner.methods.eye import EyeError
+    from stringbot.planner.methods.polish import Guarded
+    from stringbot.planner.methods.woven import WovenCanvas
 
-    lead, chords, rng = _drawn(UnthreadedWoven)
-    guard = UnthreadedEye(lead.t.reshape(64, 64) * 0.0, np.ones((64, 64)), sigma=1.0)  # wants it white
+    lead, chords, rng = _drawn(WovenCanvas)
+    guard = EyeError(lead.t.reshape(64, 64) * 0.0, np.ones((64, 64)), sigma=1.0)  # wants it white
     guard.reset(lead.D)
     both = Guarded(lead, guard)
     lead_only = said = 0

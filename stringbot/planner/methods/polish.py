@@ -41,7 +41,7 @@ from .woven import WovenCanvas
 log = logging.getLogger(__name__)
 
 __all__ = ["polish_plan", "polish_pins", "polish_lines", "propose", "settle", "badness_order", "move_passes",
-           "Guarded", "Unthreaded", "UnthreadedWoven", "UnthreadedEye", "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES",
+           "Guarded", "POLISH_SPACING", "BLOCK", "INSERT_CANDIDATES",
            "MAX_PASSES"]
 
 #: pixels between the points a chord's slope is averaged over (the grid is 256 px: about 1/128 of the frame)
@@ -92,36 +92,6 @@ class Guarded:
             else:  # where the guard weighs nothing its error and slope do not change
                 self.guard.D[cp] += dD
         return d if g <= 0.0 else abs(d) + g
-
-
-class Unthreaded:
-    """An error (:class:`~.eye.EyeError`, :class:`~.woven.WovenCanvas`) whose estimates (``helps``,
-    ``estimate``, ``delta``) sum their quadratic term without BLAS: :meth:`~.eye.EyeError.change` takes it
-    as ``np.dot(b, b)`` over the whole padded grid (about 70 000 values at 256 px), which OpenBLAS splits
-    among its threads, and on a machine busy with other work each call waits for them (measured: 30 times
-    as long, the machine loaded 6 times over).  Here ``b`` is summed over the span of grid pixels the change
-    blurs, by numpy's own loop: the same value up to rounding.  ``--face``'s polishes use it."""
-
-    def change(self, cp, dD, *, blur2=False, sign=False):
-        if blur2:
-            return super().change(cp, dD, blur2=True)
-        v = self.s[cp] * dD
-        pp = self.pidx[cp]
-        lin = -2.0 * np.dot(v, self.G[pp])  # a chord's pixels: fewer than OpenBLAS splits
-        if sign and lin >= 0.0:
-            return float(lin), v, None
-        idx = (pp[:, None] + self._koff1[None, :]).ravel()
-        lo = int(idx.min())
-        b = np.bincount(idx - lo, weights=(v[:, None] * self._kw1[None, :]).ravel())
-        return float(lin + np.einsum("i,i->", b, b)), v, None
-
-
-class UnthreadedWoven(Unthreaded, WovenCanvas):
-    """A :class:`~.woven.WovenCanvas` with :class:`Unthreaded` estimates."""
-
-
-class UnthreadedEye(Unthreaded, EyeError):
-    """An :class:`~.eye.EyeError` with :class:`Unthreaded` estimates."""
 
 
 def polish_lines(space, canvas):

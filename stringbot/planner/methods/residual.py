@@ -227,7 +227,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
           frame_weights=None):
     """The residual choice under the thread model, then refinement and polish: ``(seq, stats, drawings)``;
     with ``frame_weights`` (``weights`` without the face's, ``--face``) then :func:`frame_polish`."""
-    from .polish import UnthreadedWoven, polish_plan
+    from .polish import polish_plan
     from .refine import refine_sequence
 
     size = pic.gray.shape[0]
@@ -249,8 +249,6 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
     points = CHOOSE_POINTS_POLISHED if polish else CHOOSE_POINTS
     pin_lines = PinLines(space, size, nearest=True, spacing=max(1.0, (size - 1) / points))
     helper = eye_lines = None
-    # --face: the polishes' estimates without BLAS's threads (UnthreadedWoven); other plans as they were
-    cls = None if frame_weights is None else UnthreadedWoven
     if polish:
         from .woven_helper import WovenHelper, two_cores
 
@@ -267,7 +265,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
                 eye_lines = eye_lines_for(canvas, space)
                 points = SharedPoints([pin_lines, eye_lines], [(0, p) for p in range(space.pins - 1, -1, -1)]
                                       + [(1, p) for p in range(space.pins)])
-            helper = WovenHelper(lambda: woven_canvas(target, w, space, model, cls=cls), space, drawing=drawing,
+            helper = WovenHelper(lambda: woven_canvas(target, w, space, model), space, drawing=drawing,
                                  patience=PATIENCE, points=points)
     try:
         t = time.perf_counter()
@@ -298,7 +296,7 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
         out["polish_processes"] = 1 if done is None else 2
         drawings = None if done is None else helper.drawing
         if done is None:
-            woven = woven_canvas(target, w, space, model, cls=cls)
+            woven = woven_canvas(target, w, space, model)
             woven.build(list(zip(seq[:-1], seq[1:])))
             done = polish_plan(woven, seq, space, budget=polish, passes=passes)
         seq, ps = done
@@ -323,20 +321,21 @@ def frame_polish(target, w, frame_w, space, model, seq, *, budget, passes=None, 
     it and the face keeps what it gained.  Then (``face_passes``, default :data:`FACE_LED_PASSES`) the same
     the other way round, on the same drawing: the face-weighted error ``w`` leads, the frame's guards, so
     the face gains where the frame does not lose.  ``(seq, stats)`` as :func:`~.polish.polish_plan`, the
-    second polish's stats under ``face_led``; the estimates are :class:`~.polish.Unthreaded`."""
-    from .polish import Guarded, UnthreadedEye, UnthreadedWoven, polish_plan
+    second polish's stats under ``face_led``."""
+    from .eye import EyeError
+    from .polish import Guarded, polish_plan
     from .woven import EYE_SIGMA
 
-    lead = woven_canvas(target, frame_w, space, model, cls=UnthreadedWoven)
+    lead = woven_canvas(target, frame_w, space, model)
     lead.build(list(zip(seq[:-1], seq[1:])))
     sigma = EYE_SIGMA * lead.size
-    guard = UnthreadedEye(*_on_grid(target, w - frame_w, space), sigma=sigma)  # on the lead's D
+    guard = EyeError(*_on_grid(target, w - frame_w, space), sigma=sigma)  # on the lead's D
     guard.reset(lead.D)
     seq, stats = polish_plan(Guarded(lead, guard), seq, space, budget=budget,
                              passes=FACE_PASSES if passes is None else passes)
     face_passes = FACE_LED_PASSES if face_passes is None else face_passes
     if face_passes:
-        frame_guard = UnthreadedEye(*_on_grid(target, frame_w, space), sigma=sigma)
+        frame_guard = EyeError(*_on_grid(target, frame_w, space), sigma=sigma)
         frame_guard.reset(lead.D)
         _reweigh(lead, _on_grid(target, w, space)[1])
         seq, stats["face_led"] = polish_plan(Guarded(lead, frame_guard), seq, space, budget=budget, passes=face_passes)
@@ -367,11 +366,10 @@ def _on_grid(target, w, space):
     return np.where(inside, target, 0.0), np.where(inside, w, 0.0)
 
 
-def woven_canvas(target, w, space, model, *, cls=None):
+def woven_canvas(target, w, space, model):
     """The polish's canvas for a picture at the working size: the error on a grid of
-    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there); ``cls``: a
-    subclass of :class:`~stringbot.planner.methods.woven.WovenCanvas` to make (None: that class)."""
+    :data:`~stringbot.planner.methods.woven.GRID` px at most (the eye's blur is 1 px there)."""
     from .woven import WovenCanvas
 
     t, w = _on_grid(target, w, space)
-    return (cls or WovenCanvas)(t, w, space.pin_xy, model.width_px(t.shape[0]))
+    return WovenCanvas(t, w, space.pin_xy, model.width_px(t.shape[0]))
