@@ -49,7 +49,7 @@ import numpy as np
 
 from ..model.union import UnionStamp, fine_per_pixel, unique
 from ..picture.read import LUMINANCE
-from ..picture.resample import gaussian_blur, unsharp
+from ..picture.resample import unsharp
 from .palette import hex_to_rgb, lab, to_linear, to_srgb
 
 __all__ = ["Piece", "Fine", "chord_weights_px", "linear_colors", "luminance", "sharpened", "LIGHTNESS", "SHARPEN",
@@ -96,8 +96,7 @@ def sharpened(rgb, *, amount=SHARPEN[0], sigma=SHARPEN[1]):
         return np.asarray(rgb, dtype=np.float64)
     lin = to_linear(rgb)
     y = luminance(lin)
-    ys = (unsharp(y, amount=float(amount), sigma=sigma) if amount.ndim == 0 else
-          np.clip(y + amount * (y - gaussian_blur(y, sigma)), 0.0, 1.0))
+    ys = unsharp(y, amount=amount, sigma=sigma)
     return to_srgb(lin * (ys / np.maximum(y, 1e-6))[..., None])
 
 

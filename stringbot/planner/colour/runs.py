@@ -217,10 +217,10 @@ def fit_schedule(runs, most, *, darkest=None, late=0.0):
         colours = [k for k, _ in sched]
         movable = [j for j in range(len(sched)) if colours.count(colours[j]) > 1] or list(range(len(sched)))
         i = min(movable, key=lambda j: (sched[j][1], j))
-        k, n = sched[i]
-        same = [j for j in range(len(sched)) if j != i and colours[j] == k]
-        if same:
-            sched[min(same, key=lambda j: (abs(j - i), j))][1] += n
+        n = sched[i][1]
+        same = _nearest_of_colour(sched, i)
+        if same is not None:
+            sched[same][1] += n
         del sched[i]
         sched = _tidy(sched)
     if darkest is not None and late > 0:        # the darkest's runs in the last ``late`` of the lines join back
@@ -247,13 +247,18 @@ def no_short_runs(schedule, least):
     sched = _tidy([[k, n] for k, n in schedule])
     while len(sched) > 1 and min(n for _, n in sched) < least:
         i = min(range(len(sched)), key=lambda j: (sched[j][1], j))
-        k, n = sched[i]
-        same = [j for j in range(len(sched)) if j != i and sched[j][0] == k]
-        to = min(same, key=lambda j: (abs(j - i), j)) if same else (i - 1 if i > 0 else 1)
-        sched[to][1] += n
+        n = sched[i][1]
+        same = _nearest_of_colour(sched, i)
+        sched[same if same is not None else (i - 1 if i > 0 else 1)][1] += n
         del sched[i]
         sched = _tidy(sched)
     return [(k, n) for k, n in sched]
+
+
+def _nearest_of_colour(sched, i):
+    """The index of the run of ``sched[i]``'s colour nearest to run ``i`` (the earlier of two), or None."""
+    same = [j for j in range(len(sched)) if j != i and sched[j][0] == sched[i][0]]
+    return min(same, key=lambda j: (abs(j - i), j)) if same else None
 
 
 def _tidy(sched):

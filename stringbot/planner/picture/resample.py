@@ -137,8 +137,8 @@ def unsharp(y, *, amount, sigma, lo=0.0, hi=1.0):
     Parameters
     ----------
     y : ndarray of float, shape (n, n)
-    amount : float
-        0: ``y`` as it is (clipped).
+    amount : float or ndarray of float, shape (n, n)
+        One for the picture or one per pixel; 0: ``y`` as it is (clipped).
     sigma : float
         The blur's sigma in pixels (:func:`gaussian_blur`).
     lo, hi : float
@@ -148,6 +148,7 @@ def unsharp(y, *, amount, sigma, lo=0.0, hi=1.0):
     ndarray of float64, shape (n, n)
     """
     y = np.asarray(y, dtype=np.float64)
-    if amount <= 0:
+    amount = np.asarray(amount, dtype=np.float64)
+    if np.all(amount <= 0):
         return np.clip(y, lo, hi)
     return np.clip(y + amount * (y - gaussian_blur(y, sigma)), lo, hi)
