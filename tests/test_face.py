@@ -150,6 +150,31 @@ def test_plan_face_on_a_small_astronaut_then_score(tmp_path, astronaut):
     assert 0 < f["ssim_face_blurred"] <= 1 and 0 < f["ssim_frame_blurred"] <= 1 and f["box"] == [r, c, h, w]
 
 
+def test_score_face_scores_a_plan_made_without_face_inside_the_face_box(tmp_path, astronaut, no_face):
+    """`score --face` finds the face as `plan --face` does: the box a --face plan records, for any plan."""
+    img = small(astronaut, tmp_path, 160)
+    on, off = tmp_path / "on.json", tmp_path / "off.json"
+    assert run("plan", img, "-o", on, *SMALL, "--lines", "150", "--face")[0] == 0
+    assert run("plan", img, "-o", off, *SMALL, "--lines", "150")[0] == 0
+    code, stdout, err = run("score", off)
+    assert code == 0, err
+    assert not any(ln.startswith("face") for ln in stdout.splitlines())
+    code, stdout, err = run("score", off, "--face", "--json")
+    assert code == 0, err
+    f_off = json.loads(stdout)["face"]
+    assert f_off["box"] == read_plan(on).parameters["face"]["box"]
+    f_on = json.loads(run("score", on, "--json")[1])["face"]
+    assert f_on["box"] == f_off["box"] and f_on["ssim_face_blurred"] != f_off["ssim_face_blurred"]
+    code, stdout, err = run("score", off, "--face", "--colour")
+    assert code == 0, err
+    line = next(ln for ln in stdout.splitlines() if ln.startswith("face"))
+    assert "inside the face box" in line and "colour" in line
+    # a picture without a face: one line, exit 2
+    code, _, err = run("score", off, no_face, "--face")
+    one_error_line(code, err, "--face: no face found in")
+    assert "score without --face" in err
+
+
 def test_greedy_with_face_says_it_weighs_nothing(tmp_path, astronaut):
     """Greedy (ThreadTone) weighs no pixel: --face only keeps the face in its crop, and the line says so."""
     img = small(astronaut, tmp_path, 160)

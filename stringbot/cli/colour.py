@@ -133,13 +133,14 @@ def render_colour(plan, output, size):
                f"-> {output}")
 
 
-def score_colour(plan, plan_path, image):
-    """The colour score of any plan (a mono plan is black thread on white) against IMAGE at 512 px."""
+def score_colour(plan, plan_path, image, *, face_box=None):
+    """The colour score of any plan (a mono plan is black thread on white) against IMAGE at 512 px; inside
+    ``face_box`` (source pixels) when given, else inside the face box the plan recorded, if any."""
     from ..planner.colour.render import SCORE_SIZE, colour_score, plan_layers
     from ..planner.picture.read import read_picture
 
     pic = read_picture(image, size=SCORE_SIZE, crop=plan.crop, gray="luminance")
-    face = (plan.parameters.get("face") or {}).get("box")
+    face = face_box if face_box is not None else (plan.parameters.get("face") or {}).get("box")
     return colour_score(plan_layers(plan), plan.pin_xy, pic.rgb, frame=plan.frame, background=plan.background,
                         thread_fraction=plan.thread_model().fraction, face=face, crop=plan.crop)
 

@@ -257,7 +257,11 @@ def _refuse_the_source(output, plan_path, plan):
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
 @click.option("--colour", "colour", is_flag=True,
               help="Score a one-colour plan as a colour plan would be (always so for a colour plan).")
-def score_cmd(plan, image, as_json, colour):
+@click.option("--face", "face", is_flag=True,
+              help="Also score inside the largest face in IMAGE, found as plan --face finds it: for a plan made "
+                   "without --face, to compare it with one made with it (a plan made with --face is always "
+                   "scored inside the face box it recorded).")
+def score_cmd(plan, image, as_json, colour, face):
     """Score PLAN against IMAGE (default: the plan's source): against the picture's luminance
     (0.2125 R + 0.7154 G + 0.0721 B, as skimage's rgb2gray), and on a second line against the gray the
     plan was made against (its decolorization).
@@ -272,6 +276,9 @@ def score_cmd(plan, image, as_json, colour):
     A colour plan (and any plan with --colour) is scored in colour: the mean
     CIEDE2000 between the picture and the plan as woven (both at 512 px,
     blurred by sigma 2 px; lower is better) and the SSIM of their luminances.
+
+    A plan made with --face (and any plan with --face) is also scored inside
+    the face box: SSIM as woven there and over the frame.
     """
     import json
     import os
@@ -287,11 +294,12 @@ def score_cmd(plan, image, as_json, colour):
         beside = os.path.join(os.path.dirname(plan), image)
         if not os.path.isabs(image) and not os.path.exists(image) and os.path.exists(beside):
             image = beside  # a relative source path, taken from the plan's folder
+    box = _face_box(p, image) if face else None
     if colour or not p.is_mono:
-        return _score_colour(p, plan, image, as_json)
+        return _score_colour(p, plan, image, as_json, box=box)
     from ..planner.model.scoring import score_picture
 
-    r = score_picture(p, image, target="luminance")
+    r = score_picture(p, image, target="luminance", face_box=box)
     if p.source.get("sha256") and p.source["sha256"] != r["source"]["sha256"]:
         log.warning("%s is not the picture the plan was made from (sha256 differs)", image)
     own = score_picture(p, image, target="own") if r["weights"] is not None else r  # a gray picture: one gray
@@ -326,6 +334,20 @@ def score_cmd(plan, image, as_json, colour):
                "a blur (sigma 2 px), as the eye sees the painting from afar.")
 
 
+def _face_box(plan, image):
+    """``score --face``: the face box the plan recorded, else the largest face in IMAGE (source pixels)."""
+    recorded = (plan.parameters.get("face") or {}).get("box")
+    if recorded:
+        return recorded
+    from ..planner.picture.face import DETECT_SIDE, largest_face
+    found = largest_face(image)
+    if found is None:
+        raise BadInput(f"--face: no face found in {image!r} (the frontal-face cascade finds faces seen from the "
+                       f"front, at least {24 / DETECT_SIDE:.0%} of the picture's longer side); expected a picture "
+                       "with a face, or score without --face")
+    return found.to_record()["box"]
+
+
 def _face_line(r, *, other=""):
     """The score's line for a plan made with --face: SSIM as woven inside the face box and over the frame,
     its size and blur said (``other``: what tells its frame figure from the ``SSIM`` line's)."""
@@ -341,12 +363,12 @@ def _face_line(r, *, other=""):
             f"{f['ssim_frame_blurred']:.4f} over the frame only{other}\n")
 
 
-def _score_colour(p, plan, image, as_json):
+def _score_colour(p, plan, image, as_json, *, box=None):
     import json
 
     from .colour import score_colour
 
-    r = score_colour(p, plan, image)
+    r = score_colour(p, plan, image, face_box=box)
     if as_json:
         face = r.pop("face", None)
         click.echo(json.dumps({"plan": plan, "image": image, "method": p.method, "colors": p.colors,

@@ -171,7 +171,7 @@ def plan_gray(plan):
     return (gray if gray in ("decolor", "luminance") else "decolor"), weights
 
 
-def score_picture(plan, image, *, target="luminance"):
+def score_picture(plan, image, *, target="luminance", face_box=None):
     """Score a plan against a picture file, cropped as the plan says.
 
     Parameters
@@ -183,6 +183,9 @@ def score_picture(plan, image, *, target="luminance"):
         as ``skimage.color.rgb2gray`` does (:data:`LUMINANCE`), what the peers
         plan against; ``own``: the gray the plan was made against
         (:func:`plan_gray`: its decolorization's weights, as recorded).
+    face_box : sequence of 4 floats, optional
+        ``(row, col, height, width)`` in source pixels: score inside this
+        face box (``luminance`` only) instead of the one the plan recorded.
 
     Returns
     -------
@@ -190,9 +193,9 @@ def score_picture(plan, image, *, target="luminance"):
         :func:`score_chords`'s figures with ``woven_error``, and ``weights``
         (the colour-to-gray weights used, None for a gray picture) and
         ``source`` (the picture's ``source`` record: path, sha256, size); for
-        a plan made with ``--face`` (and ``luminance``), ``face``: the SSIM as
-        woven inside the face box and over the frame
-        (:func:`face_scores`).
+        a plan made with ``--face`` or given ``face_box`` (and
+        ``luminance``), ``face``: the SSIM as woven inside the face box and
+        over the frame (:func:`face_scores`).
     """
     from ..picture.read import read_picture
 
@@ -206,7 +209,9 @@ def score_picture(plan, image, *, target="luminance"):
     woven = read_picture(image, size=WOVEN_SIZE, crop=plan.crop, weights=pic.weights, gray=gray)
     out = score(plan, pic.gray, woven_gray=woven.gray)
     out.update(weights=pic.weights, source=pic.source)
-    if target == "luminance" and (plan.parameters or {}).get("face"):  # made with --face: SSIM inside its box
+    if face_box is not None and target == "luminance":
+        out["face"] = face_scores(plan, woven.gray, box=face_box)
+    elif target == "luminance" and (plan.parameters or {}).get("face"):  # made with --face: SSIM inside its box
         out["face"] = face_scores(plan, woven.gray)
     return out
 
