@@ -19,6 +19,11 @@ proposals made before the block ahead of it is settled, so that on two cores
 two processes take turns (:mod:`stringbot.planner.methods.woven_helper`) and reach
 the same plan.
 
+It may go on in rounds (:func:`polish_rounds`; the residual planner's default
+three): each round revisits the ``budget`` worst pins of the drawing the round
+before left, since a pin's best way round depends on its neighbours', which
+that round rerouted.
+
 On request (``passes``, the ``--polish-passes`` option of ``stringbot plan``;
 off by default: three passes about double the plan's CPU), passes of
 Prem-Dharshan's two other moves follow, in one process: *inserting* a pin
