@@ -8,7 +8,7 @@ start-up and imports included):
 * the planner's own process: its CPU time (user + system), which leaves out
   its waits for the helper processes;
 * plus, for the polish on two cores, the slower of the two polishing sides
-  (``polish_pins`` in the helper and in its twin: the planner's process waits
+  (``polish_rounds`` in the helper and in its twin: the planner's process waits
   for them);
 * plus the slower of the two halves of the preview that the twin and the
   helper draw after the polish (``TwinDrawing.make``; the planner's process
@@ -54,7 +54,7 @@ def child(fd, argv):
                     os.write(fd, f"{tag} {time.process_time() - c:.4f}\n".encode())
         setattr(owner, name, g)
 
-    timed(polish, "polish_pins", "polish")
+    timed(polish, "polish_rounds", "polish")
     timed(woven_helper.TwinDrawing, "make", "preview")
     try:
         main(["plan", *argv])

@@ -11,6 +11,7 @@ from scipy.ndimage import correlate
 
 from stringbot.planner.build import plan_picture
 from stringbot.planner.methods.polish import polish_plan
+from stringbot.planner.methods.residual import POLISH_ROUNDS
 from stringbot.planner.methods.woven import WovenCanvas
 from stringbot.planner.model.chords import chord_space, frame_mask
 from stringbot.planner.model.scoring import woven_error
@@ -169,12 +170,41 @@ def test_polish_never_makes_the_woven_picture_worse_and_keeps_one_thread():
     assert again == out
 
 
+def test_rounds_of_reroutes_go_on_where_the_round_before_stopped():
+    space = chord_space(60)
+    g = horse_like()
+    canvas, t, mask = canvas_for(g, space)
+    rng = np.random.default_rng(5)
+    seq = [0]
+    for _ in range(150):
+        nxt = int(rng.integers(0, 60))
+        while space.index[seq[-1], nxt] < 0:
+            nxt = int(rng.integers(0, 60))
+        seq.append(nxt)
+    chords0 = list(zip(seq[:-1], seq[1:]))
+    budget = 40  # a part of the pins a round: the next round finds others (and the rerouted ones' neighbours)
+    one, s1 = polish_plan(polished_canvas(t, mask, space, chords0), seq, space, budget=budget)
+    three, s3 = polish_plan(polished_canvas(t, mask, space, chords0), seq, space, budget=budget, rounds=3)
+    assert "rounds" not in s1 and s3["rounds"] == 3 and len(s3["rerouted_by_round"]) == 3
+    assert s3["rerouted_by_round"][0] == s1["rerouted"]  # the first round is the polish of one round
+    assert s3["rerouted"] == sum(s3["rerouted_by_round"]) and s3["rerouted_by_round"][1] > 0
+    assert s3["woven_rms"] < s1["woven_rms"]
+    assert len(three) == len(seq) and all(space.index[a, b] >= 0 for a, b in zip(three[:-1], three[1:]))
+    area = mask.sum()
+    e3 = brute_error(canvas, list(zip(three[:-1], three[1:])), t, mask)
+    assert s3["woven_rms"] == pytest.approx(np.sqrt(e3 / area), rel=1e-4)
+    again, _ = polish_plan(polished_canvas(t, mask, space, chords0), seq, space, budget=budget, rounds=3)
+    assert again == three
+
+
 def test_auto_lines_are_polished_and_a_line_count_is_not():
     g = horse_like(101)
     pic = picture(g)
     auto = plan_picture("x.png", picture=pic, pins=60, size=101)
     fixed = plan_picture("x.png", picture=pic, pins=60, size=101, lines=200)
     assert auto.parameters["polish"] == 1000 and auto.parameters["refine"] == 0
+    assert auto.parameters["polish_rounds"] == POLISH_ROUNDS == auto.stats["polish"]["rounds"]
+    assert fixed.parameters["polish_rounds"] == 0
     assert auto.stats["polish"]["rerouted"] > 0
     assert auto.stats["polish"]["woven_rms"] < auto.stats["polish"]["woven_rms_before"]
     assert fixed.parameters["polish"] == 0 and fixed.parameters["refine"] == 300 and "polish" not in fixed.stats

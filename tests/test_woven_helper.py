@@ -9,7 +9,7 @@ import pytest
 
 from stringbot.planner.methods import woven_helper
 from stringbot.planner.build import plan_picture
-from stringbot.planner.methods.residual import PATIENCE
+from stringbot.planner.methods.residual import PATIENCE, POLISH_ROUNDS
 
 from planner_helpers import picture
 from test_polish import horse_like
@@ -35,7 +35,7 @@ def test_two_processes_make_the_plan_one_makes(monkeypatch):
     one = _plan(monkeypatch, 1)
     two = _plan(monkeypatch, 2)
     assert one.stats["polish_processes"] == 1 and two.stats["polish_processes"] == 2
-    assert one.stats["polish"]["rerouted"] > 0
+    assert one.stats["polish"]["rerouted"] > 0 and len(one.stats["polish"]["rerouted_by_round"]) == POLISH_ROUNDS > 1
     assert two.sequence == one.sequence
     assert two.stats["polish"]["woven_rms"] == one.stats["polish"]["woven_rms"]
     # the helper drew the chosen threads while they were chosen (all but at most the last PATIENCE)
@@ -61,7 +61,7 @@ def test_a_helper_that_fails_leaves_the_polish_here(monkeypatch, caplog):
 def test_a_twin_that_dies_leaves_the_polish_here(monkeypatch):
     one = _plan(monkeypatch, 1)
 
-    def dying_twin(canvas, seq, order, pin_lines):
+    def dying_twin(canvas, seq, order, pin_lines, **kw):
         from multiprocessing.connection import Pipe
 
         here, there = Pipe()

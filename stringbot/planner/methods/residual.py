@@ -54,7 +54,7 @@ from .canvas import Canvas, fresh
 log = logging.getLogger(__name__)
 
 __all__ = ["run", "residual_sequence", "best_start", "woven_canvas", "frame_polish", "FACE_PASSES", "FACE_LED_PASSES", "CHOOSE_FACE", "PATIENCE",
-           "EYE_SHARE", "EYE_FIRST", "LENGTH_POWER", "SHARPEN"]
+           "EYE_SHARE", "EYE_FIRST", "LENGTH_POWER", "SHARPEN", "POLISH_ROUNDS"]
 
 #: Threads in a row that may fail to lower the error before an automatic run ends.
 PATIENCE = 40
@@ -79,6 +79,10 @@ SHARPEN = (1.5, 0.015)
 #: many (the polish reworks it against the piece as woven, scoring chords every 1/128 of the frame):
 #: 0.1-0.2 s less, as-woven error within 1 % (docs/planner.md, "Speed").
 CHOOSE_POINTS, CHOOSE_POINTS_POLISHED = 400, 200
+#: rounds of the polish's reroutes (``--polish`` pins each; :func:`~.polish.polish_rounds`): a pin's best way
+#: round depends on its neighbours', which the round before rerouted (astronaut as woven 0.1325 -> 0.1303 for
+#: three, docs/planner.md, "Polish"); ``--face`` keeps one (its own polishes follow)
+POLISH_ROUNDS = 3
 #: ``--face``: the share of the face's extra weight the chooser and its stop see (the polishes see all of
 #: it): a chord chosen for the face's sake darkens the rest of the frame along its length, a polish's move
 #: is judged where it is (docs/planner.md, "Faces")
@@ -219,8 +223,14 @@ def run(job):
     seq, stats, drawings = _plan(job.space, job.picture, job.mask, job.weights, job.lines, job.model,
                                  start_pin=job.start_pin, refine=k["refine"], polish=k["polish"], preview=k["preview"],
                                  passes=k.get("polish_passes", 0), frame_weights=job.frame_weights)
-    params = {"refine": k["refine"], "polish": k["polish"], "polish_passes": k.get("polish_passes", 0), "thread_px": round(job.model.width_px(k["size"]), 4)}
+    params = {"refine": k["refine"], "polish": k["polish"], "polish_rounds": _rounds(k["polish"], job.frame_weights),
+              "polish_passes": k.get("polish_passes", 0), "thread_px": round(job.model.width_px(k["size"]), 4)}
     return Outcome(seq, params, stats, drawings=drawings)
+
+
+def _rounds(polish, frame_weights):
+    """Rounds of the polish's reroutes: :data:`POLISH_ROUNDS`, one with ``--face``, none without the polish."""
+    return 0 if not polish else 1 if frame_weights is not None else POLISH_ROUNDS
 
 
 def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish, preview=None, passes=0,
@@ -292,13 +302,14 @@ def _plan(space, pic, mask, weights, lines, model, *, start_pin, refine, polish,
             return seq, out, None
         t = time.perf_counter()
         report("polishing")
-        done = None if helper is None else helper.finish(seq, polish, passes)
+        rounds = _rounds(polish, frame_weights)
+        done = None if helper is None else helper.finish(seq, polish, passes, rounds=rounds)
         out["polish_processes"] = 1 if done is None else 2
         drawings = None if done is None else helper.drawing
         if done is None:
             woven = woven_canvas(target, w, space, model)
             woven.build(list(zip(seq[:-1], seq[1:])))
-            done = polish_plan(woven, seq, space, budget=polish, passes=passes)
+            done = polish_plan(woven, seq, space, budget=polish, rounds=rounds, passes=passes)
         seq, ps = done
         out.update(polish=ps, polish_seconds=round(time.perf_counter() - t, 3))
         if frame_weights is not None:

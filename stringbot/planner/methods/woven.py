@@ -39,7 +39,7 @@ GRID = WOVEN_SIZE // 2
 MAX_FINE = 4096
 #: footprints kept (about 20 kB each on a 2048-px canvas): the drawing's chords and the chords tried
 #: (tried again often: the same pin's best way round comes up again)
-MAX_CACHED = 5000
+MAX_CACHED = 8000
 
 
 def fine_factor(width_px, m):
@@ -159,7 +159,9 @@ class WovenCanvas(EyeError):
         """Change of ``D`` from removing then adding chords: ``(cp, dD)`` on the grid.
 
         ``write``: ``"keep"`` changes ``Sf`` (exact); ``"undo"`` puts it back (exact); ``"none"``
-        judges each chord against ``Sf`` as it is (exact but where the chords given overlap each other).
+        judges each chord against ``Sf`` as it is (exact but where the chords given overlap each other),
+        and ``cp`` may then hold a grid pixel more than once (its changes to be summed: what the error's
+        change, linear in ``dD`` and through the blur, does anyway).
         A fine pixel changes where its count goes from 0 to 1 (a chord added) or 1 to 0 (removed).
         """
         saved, parts = [], []
@@ -177,7 +179,12 @@ class WovenCanvas(EyeError):
             self.Sf[flat] = old
         if not parts:
             return None, None
-        cp, dC = parts[0] if len(parts) == 1 else sum_sparse(parts, self._acc, self._mark)
+        if len(parts) == 1:
+            cp, dC = parts[0]
+        elif write == "none":  # an estimate: the parts as they are (a pixel may come twice; the sums are the same)
+            cp, dC = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+        else:
+            cp, dC = sum_sparse(parts, self._acc, self._mark)
         return cp, dC * (1.0 / float(self.f * self.f))
 
     def delta(self, chords_out=(), chords_in=()):

@@ -122,6 +122,14 @@ class Partner:
             rerouted += self._take(replay)
         return rerouted
 
+    def sync(self):
+        """Wait until the other side has come here too (between rounds of :func:`polish_rounds
+        <stringbot.planner.methods.polish.polish_rounds>`: it has read every change this side sent, so
+        the buffers may be written again)."""
+        self.conn.send(("sync",))
+        if self.conn.recv() != ("sync",):  # EOFError: the other side is gone
+            raise RuntimeError("polish: the partners are out of step")
+
     def _take(self, replay):
         made_here = 0
         for (proposal, made, sizes), buf in zip(self.conn.recv(), self._in):  # EOFError: the other side is gone
@@ -172,20 +180,20 @@ def _unpack(buf, sizes):
     return (flat, sf, cu, d), G, E
 
 
-def twin(canvas, seq, order, pin_lines, *, after=None):
-    """Fork a twin that polishes every other block of pins with :func:`~stringbot.planner.methods.polish.polish_pins`
-    (then calls ``after(canvas, seq)``, the drawing and the sequence polished, and ends); returns this side's
+def twin(canvas, seq, order, pin_lines, *, rounds=1, after=None):
+    """Fork a twin that polishes every other block of pins with :func:`~stringbot.planner.methods.polish.polish_pins`,
+    ``rounds`` times (:func:`~stringbot.planner.methods.polish.polish_rounds`; then calls ``after(canvas, seq)``, the drawing and the sequence polished, and ends); returns this side's
     :class:`Partner`."""
     from multiprocessing.connection import Pipe
 
-    from .polish import BLOCK, polish_pins
+    from .polish import BLOCK, polish_rounds
 
     here, there = Pipe()
     shared = buffers(canvas, BLOCK)
 
     def body():  # pragma: no cover - runs in the child
         here.close()
-        polish_pins(canvas, seq, order, pin_lines, partner=Partner(there, 1, shared))
+        polish_rounds(canvas, seq, order, pin_lines, rounds=rounds, partner=Partner(there, 1, shared))
         there.close()
         if after is not None:
             after(canvas, seq)
@@ -349,8 +357,8 @@ class WovenHelper:
             self._send(("chords", np.asarray(self._pending, dtype=np.int32).reshape(-1, 2)))
             self._pending = []
 
-    def finish(self, seq, budget, passes=0, deletes=0):
-        """Polish ``seq`` in the helper (``passes`` of inserts and deletes, then ``deletes`` passes of
+    def finish(self, seq, budget, passes=0, deletes=0, rounds=1):
+        """Polish ``seq`` in the helper (``rounds`` of reroutes, ``passes`` of inserts and deletes, then ``deletes`` passes of
         deletes, after it, there alone).
 
         Returns
@@ -358,7 +366,8 @@ class WovenHelper:
         (seq, stats) as :func:`~stringbot.planner.methods.polish.polish_plan`, or None when the helper failed.
         """
         self._flush()
-        self._send(("polish", [int(p) for p in seq], int(budget), time.perf_counter(), int(passes), int(deletes)))
+        self._send(("polish", [int(p) for p in seq], int(budget), time.perf_counter(), int(passes), int(deletes),
+                    int(rounds)))
         out = None
         try:
             if not self.failed:
@@ -389,7 +398,7 @@ class WovenHelper:
 
 def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - runs in the child
     """The helper: stamp chords as they come, and in between lay out the polish's chord points and
-    find the drawn chords' grid pixels; polish on ``("polish", seq, budget, sent, passes, deletes)``."""
+    find the drawn chords' grid pixels; polish on ``("polish", seq, budget, sent, passes, deletes, rounds)``."""
     from .polish import polish_lines, polish_plan
 
     canvas = make_canvas()
@@ -428,7 +437,7 @@ def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - r
             canvas.draw(chosen[drawn:upto])
             drawn = upto
         elif msg[0] == "polish":
-            _, seq, budget, sent, passes, deletes = msg
+            _, seq, budget, sent, passes, deletes, rounds = msg
             t = time.perf_counter()
             final = list(zip(seq[:-1], seq[1:]))
             if final[:drawn] == chosen[:drawn]:
@@ -439,15 +448,15 @@ def _serve(conn, make_canvas, space, drawing, patience):  # pragma: no cover - r
             t1 = time.perf_counter()
             twins = []
 
-            def partner(*args):
-                mate = twin(*args, after=None if drawing is None else lambda c, s: drawing.make(c, s, 0))
+            def partner(*args, **kw):
+                mate = twin(*args, **kw, after=None if drawing is None else lambda c, s: drawing.make(c, s, 0))
                 twins.append(mate.pid)
                 mate.pid = None  # the twin may go on drawing the preview: waited for at the end
                 return mate
 
             try:
-                seq, stats = polish_plan(canvas, seq, space, budget=budget, passes=passes, deletes=deletes,
-                                         partner=partner)
+                seq, stats = polish_plan(canvas, seq, space, budget=budget, rounds=rounds, passes=passes,
+                                         deletes=deletes, partner=partner)
             except BaseException:
                 for pid in twins:  # gone or going (an interrupt reaches the twin too)
                     os.waitpid(pid, 0)
