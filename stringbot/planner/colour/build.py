@@ -165,24 +165,35 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
                      resize_square(np.asarray(weight, dtype=np.float64), grid))
         return w
 
-    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None, fine=0.0, weight=weight):
+    memo = {}
+
+    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None, fine=0.0, weight=weight, share=False):
         """A :class:`Runner` on a ``grid``-px working grid (the picture ``rgb`` read at that size, ``weight``
-        the pixel weights: the face's too by default)."""
-        indptr, indices = chord_pixels(space, grid, cache=cache)
-        weights = chord_weights_px(space, grid, model.width_px(grid) * thicker)
-        chords2 = fine_grid = None
-        if fine:             # the picture's luminance on a grid twice as fine, and the chords there
-            two = 2 * grid
-            chords2 = (*chord_pixels(space, two, cache=cache),
-                       chord_weights_px(space, two, model.width_px(two) * thicker))
-            rgb2 = read_picture(path, size=two, crop=pic.crop, gray="luminance").rgb if picture is None else \
-                np.stack([resize_square(pic.rgb[..., c], two) for c in range(3)], axis=-1)
-            fine_grid = Fine(rgb2.reshape(-1, 3) @ np.asarray(LUMINANCE, dtype=np.float64),
-                             (weights_at(two, weight) * fine).ravel(), float(np.median(chords2[2])))
+        the pixel weights: the face's too by default; ``share``: the chords, the fine grid's picture and the
+        fans of the runner made before with ``share`` on the same grid)."""
+        key = (grid, thicker, bool(fine))
+        if share and key in memo:
+            indptr, indices, weights, chords2, gray2, like = memo[key]
+        else:
+            like = gray2 = chords2 = None
+            indptr, indices = chord_pixels(space, grid, cache=cache)
+            weights = chord_weights_px(space, grid, model.width_px(grid) * thicker)
+            if fine:             # the picture's luminance on a grid twice as fine, and the chords there
+                two = 2 * grid
+                chords2 = (*chord_pixels(space, two, cache=cache),
+                           chord_weights_px(space, two, model.width_px(two) * thicker))
+                rgb2 = read_picture(path, size=two, crop=pic.crop, gray="luminance").rgb if picture is None else \
+                    np.stack([resize_square(pic.rgb[..., c], two) for c in range(3)], axis=-1)
+                gray2 = rgb2.reshape(-1, 3) @ np.asarray(LUMINANCE, dtype=np.float64)
+        fine_grid = None if not fine else Fine(gray2, (weights_at(2 * grid, weight) * fine).ravel(),
+                                               float(np.median(chords2[2])))
         piece = Piece(to_linear(rgb.reshape(-1, 3)), weights_at(grid, weight).ravel(), board, lin, space.pin_xy,
                       model.width_px(grid) * thicker, nominal=float(np.median(weights)), samples=samples,
                       texture=texture, fine=fine_grid)
-        return Runner(space, indptr, indices, weights, piece, fine=chords2)
+        out = Runner(space, indptr, indices, weights, piece, fine=chords2, like=like)
+        if share and key not in memo:
+            memo[key] = (indptr, indices, weights, chords2, gray2, out)
+        return out
 
     if not (isinstance(sharpen, (int, float)) and 0 <= sharpen <= 10):
         raise BadInput(f"sharpen {sharpen!r}; expected 0..10")
@@ -212,11 +223,11 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
         def lay(strength, n, schedule):
             """The runs of ``schedule`` laid for ``n`` lines, the face's extra weight ``strength`` (None: none)."""
             if strength is None:
-                r = runner(size, target, texture=texture, fine=fine, weight=plain)
+                r = runner(size, target, texture=texture, fine=fine, weight=plain, share=True)
             else:
                 w = face_weights(found, crop=pic.crop, size=size, gray=pic.gray, times=plain, strength=strength)
                 r = runner(size, target if face_target is None else face_target, texture=texture, fine=fine,
-                           weight=w)
+                           weight=w, share=True)
             r.start_error = r.piece.error()
             r.runs = follow(r, n, schedule, first=start_pin)
             return r

@@ -57,7 +57,7 @@ def estimate(piece, box, *, crop, frame):
     -------
     (float, float)
         ``(face, frame)``: as :func:`stringbot.planner.model.scoring.face_ssim` with the score's blur (2 px at
-        512 px; on the four portraits within 0.002 of the score's differences between two plans).
+        512 px; on the portraits the frame's difference between two plans within 0.004 of the score's).
     """
     from ..model.chords import frame_mask
     from ..model.scoring import WOVEN_SIGMA, WOVEN_SIZE, face_ssim

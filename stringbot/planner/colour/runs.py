@@ -114,12 +114,18 @@ class Runner:
     fine : (indptr, indices, weights), optional
         The chords on the piece's fine grid (a piece with :class:`~.model.Fine`): the steps judge them
         there, by ``piece.S2``.
+    like : Runner, optional
+        A runner on the same chords (and fine chords): its fans are shared (``--face``'s plans laid in turn).
     """
 
-    def __init__(self, space, indptr, indices, weights, piece, *, min_loop=RUN_DEFAULTS["min_loop"], fine=None):
+    def __init__(self, space, indptr, indices, weights, piece, *, min_loop=RUN_DEFAULTS["min_loop"], fine=None,
+                 like=None):
         self.space, self.piece, self.min_loop = space, piece, int(min_loop)
-        self.fans = _Fans(space, indptr, indices, weights) if fine is None else _Fans(space, *fine)
-        self.everywhere = _Everywhere(indptr, indices, weights)
+        if like is not None:        # the same chords: their fans (built as they are needed) shared
+            self.fans, self.everywhere = like.fans, like.everywhere
+        else:
+            self.fans = _Fans(space, indptr, indices, weights) if fine is None else _Fans(space, *fine)
+            self.everywhere = _Everywhere(indptr, indices, weights)
         self.laid = np.zeros((piece.K, space.m), dtype=bool)   # a chord is laid once in a colour
         self.laid |= space.span < space.pins // SHORT
         self.lines = 0
