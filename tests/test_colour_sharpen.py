@@ -92,7 +92,7 @@ def test_an_amount_per_pixel_sharpens_each_pixel_by_its_own():
 
 
 def test_face_share_is_the_face_ellipse_over_any_importance():
-    from stringbot.planner.colour.build import _face_share
+    from stringbot.planner.colour.faces import face_share as _face_share
     from stringbot.planner.picture.face import FACE_WEIGHT
 
     face = np.ones((8, 8))

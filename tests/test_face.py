@@ -236,21 +236,75 @@ def test_a_colour_plan_with_face_records_it_weighs_it_and_scores_it(tmp_path, as
 
 
 def test_a_colour_plan_with_face_drafts_its_schedule_without_the_face_weights(tmp_path, astronaut, monkeypatch):
-    # the draft (the colours' order and shares) weighs the frame alone; the plan weighs the face more
+    # the draft (the colours' order and shares) weighs the frame alone; the plan without the face to compare with
+    # too, the plans with it weigh the face more
     from stringbot.planner.colour import runs
     from stringbot.planner.colour.build import plan_colour
 
-    seen, real = {}, runs.plan_runs
+    seen, draft, follow = {"laid": []}, runs.draft_schedule, runs.follow
 
-    def spy(draft, final, lines, **kw):
-        seen["draft"] = draft.piece.weight.copy()
-        return real(draft, lambda: seen.setdefault("plan", final()), lines, **kw)
+    def spy_draft(d, lines, **kw):
+        seen["draft"] = d.piece.weight.copy()
+        return draft(d, lines, **kw)
 
-    monkeypatch.setattr(runs, "plan_runs", spy)
-    plan_colour(small(astronaut, tmp_path, 160), colors=["#000000", "#ee7623"], pins=120, size=128, lines=300,
-                face="on")
+    def spy_follow(r, lines, schedule, **kw):
+        seen["laid"].append((r.piece.weight.max(), lines))
+        return follow(r, lines, schedule, **kw)
+
+    monkeypatch.setattr(runs, "draft_schedule", spy_draft)
+    monkeypatch.setattr(runs, "follow", spy_follow)
+    p = plan_colour(small(astronaut, tmp_path, 160), colors=["#000000", "#ee7623"], pins=120, size=128, lines=300,
+                    face="on")
     assert seen["draft"].max() == 1.0 and set(np.unique(seen["draft"])) <= {0.0, 1.0}
-    assert seen["plan"].piece.weight.max() > 2.0
+    (plain, n0), *faced = seen["laid"]
+    assert plain == 1.0 and n0 == 300 and faced and all(w > 1.5 and n == 300 for w, n in faced)  # --lines 300: kept
+    record = p.parameters["face_plan"]
+    assert len(record["tried"]) == len(faced) and record["lines_more"] == 0.0
+    assert record["strength"] in [t["strength"] for t in record["tried"]]
+
+
+def test_lay_with_face_keeps_the_first_plan_whose_frame_is_not_lower(monkeypatch):
+    from stringbot.planner.colour import faces
+
+    class Laid:
+        def __init__(self, strength, lines):
+            self.piece, self.strength, self.lines = (strength, lines), strength, lines
+
+    def lay(strength, lines, schedule):
+        assert sum(n for _, n in schedule) == lines or lines == 1000
+        return Laid(strength, lines)
+
+    frames = {}
+    monkeypatch.setattr(faces, "estimate", lambda piece, box, **kw: (0.7, frames[piece[0]]))
+    schedule = [(0, 900), (1, 100)]
+    frames.update({None: 0.60, 2.0: 0.59, 1.0: 0.61, 0.5: 0.62})
+    got, record = faces.lay_with_face(lay, 1000, schedule, box=None, crop=None, frame="circle",
+                                      candidates=((2.0, 0.1), (1.0, 0.1), (0.5, 0.1)))
+    assert (got.strength, got.lines) == (1.0, 1100) and len(record["tried"]) == 2    # 0.5 not laid
+    assert record["strength"] == 1.0 and record["lines_more"] == 0.1 and record["without"] == [0.7, 0.6]
+    frames.update({2.0: 0.58, 1.0: 0.59, 0.5: 0.55})                                  # none: the best frame
+    got, record = faces.lay_with_face(lay, 1000, schedule, box=None, crop=None, frame="circle", auto_lines=False,
+                                      candidates=((2.0, 0.1), (1.0, 0.1), (0.5, 0.1)))
+    assert (got.strength, got.lines) == (1.0, 1000) and len(record["tried"]) == 3
+
+
+def test_the_estimate_of_a_piece_that_is_the_picture_is_one():
+    from stringbot.planner.colour.faces import estimate
+    from stringbot.planner.colour.model import Fine, Piece, _gray
+
+    m, rng = 32, np.random.default_rng(1)
+    rgb = rng.uniform(0.1, 0.9, (m * m, 3))
+    fine = Fine(np.zeros(4 * m * m), np.ones(4 * m * m), 0.2)
+    piece = Piece(rgb, np.ones(m * m), np.ones(3), np.zeros((1, 3)), np.zeros((4, 2)), 0.5, fine=fine)
+    cells = rng.uniform(0.0, 1.0, (4 * m * m, 3))
+    piece.u_fine[:] = cells
+    fine.gray[:] = _gray(cells)
+    crop = {"cx": 50.0, "cy": 50.0, "r": 50.0}
+    face, frame = estimate(piece, (30, 30, 40, 40), crop=crop, frame="square")
+    assert np.isclose(face, 1.0) and np.isclose(frame, 1.0)
+    fine.gray[:] = 1.0 - fine.gray                                                    # a negative: far from one
+    face, frame = estimate(piece, (30, 30, 40, 40), crop=crop, frame="square")
+    assert face < 0.5 and frame < 0.5
 
 
 def test_face_takes_auto_on_or_off(tmp_path, astronaut):

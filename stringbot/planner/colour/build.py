@@ -23,6 +23,7 @@ from .palette import WHITE, hex_to_rgb, to_linear
 from .reach import auto_palette, bare_share
 from .model import FINE, SHARPEN, TEXTURE
 from .runs import RUN_DEFAULTS
+from .faces import FACE_SHARPEN
 
 log = logging.getLogger(__name__)
 
@@ -35,10 +36,6 @@ DRAFT_SAMPLES = 0.5
 #: the draft's thread is this many times as wide, each of its chords standing for as many of the plan's: a
 #: fifth less CPU (chelsea 4.7 -> 3.8 s, coffee 6.8 -> 5.4 s at Prem-Dharshan's counts), the same quality
 DRAFT_THICKER = 2.0
-#: --face: the plan's target is sharpened this much more over the face (:func:`.model.sharpened`; times the
-#: face's soft-edged ellipse, 1 inside): the face's blurred SSIM +0.004 / +0.003 / +0.005 / +0.005 on the four
-#: portraits (the mean of three starts), the frame's -0.001 / +0.001 / +0.001 / +0.003 (docs/planner.md, "Faces")
-FACE_SHARPEN = 4.0
 
 
 def draft_size(size):
@@ -46,16 +43,6 @@ def draft_size(size):
     return min(int(size), max(64, int(size) // 2))
 #: most spool changes a plan may be given
 MAX_SPOOL_CHANGES = 500
-
-
-def _face_share(weight, plain):
-    """Where the face's extra weight lies, 0..1: ``weight / plain - 1`` over its most (the ellipse's inside)."""
-    from ..picture.face import FACE_WEIGHT
-
-    weight = np.asarray(weight, np.float64)
-    plain = np.ones_like(weight) if plain is None else np.broadcast_to(np.asarray(plain, np.float64), weight.shape)
-    extra = np.divide(weight, plain, out=np.ones_like(weight), where=plain > 0) - 1.0
-    return np.clip(extra / FACE_WEIGHT, 0.0, 1.0) if FACE_WEIGHT > 0 else np.zeros_like(weight)
 
 
 def auto_colour_lines(gray, mask, background, colors):
@@ -178,53 +165,95 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
                      resize_square(np.asarray(weight, dtype=np.float64), grid))
         return w
 
-    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None, fine=0.0, weight=weight):
+    memo = {}
+
+    def runner(grid, rgb, *, samples=1.0, thicker=1.0, texture=None, fine=0.0, weight=weight, share=False):
         """A :class:`Runner` on a ``grid``-px working grid (the picture ``rgb`` read at that size, ``weight``
-        the pixel weights: the face's too by default)."""
-        indptr, indices = chord_pixels(space, grid, cache=cache)
-        weights = chord_weights_px(space, grid, model.width_px(grid) * thicker)
-        chords2 = fine_grid = None
-        if fine:             # the picture's luminance on a grid twice as fine, and the chords there
-            two = 2 * grid
-            chords2 = (*chord_pixels(space, two, cache=cache),
-                       chord_weights_px(space, two, model.width_px(two) * thicker))
-            rgb2 = read_picture(path, size=two, crop=pic.crop, gray="luminance").rgb if picture is None else \
-                np.stack([resize_square(pic.rgb[..., c], two) for c in range(3)], axis=-1)
-            fine_grid = Fine(rgb2.reshape(-1, 3) @ np.asarray(LUMINANCE, dtype=np.float64),
-                             (weights_at(two, weight) * fine).ravel(), float(np.median(chords2[2])))
+        the pixel weights: the face's too by default; ``share``: the chords, the fine grid's picture and the
+        fans of the runner made before with ``share`` on the same grid)."""
+        key = (grid, thicker, bool(fine))
+        if share and key in memo:
+            indptr, indices, weights, chords2, gray2, like = memo[key]
+        else:
+            like = gray2 = chords2 = None
+            indptr, indices = chord_pixels(space, grid, cache=cache)
+            weights = chord_weights_px(space, grid, model.width_px(grid) * thicker)
+            if fine:             # the picture's luminance on a grid twice as fine, and the chords there
+                two = 2 * grid
+                chords2 = (*chord_pixels(space, two, cache=cache),
+                           chord_weights_px(space, two, model.width_px(two) * thicker))
+                rgb2 = read_picture(path, size=two, crop=pic.crop, gray="luminance").rgb if picture is None else \
+                    np.stack([resize_square(pic.rgb[..., c], two) for c in range(3)], axis=-1)
+                gray2 = rgb2.reshape(-1, 3) @ np.asarray(LUMINANCE, dtype=np.float64)
+        fine_grid = None if not fine else Fine(gray2, (weights_at(2 * grid, weight) * fine).ravel(),
+                                               float(np.median(chords2[2])))
         piece = Piece(to_linear(rgb.reshape(-1, 3)), weights_at(grid, weight).ravel(), board, lin, space.pin_xy,
                       model.width_px(grid) * thicker, nominal=float(np.median(weights)), samples=samples,
                       texture=texture, fine=fine_grid)
-        return Runner(space, indptr, indices, weights, piece, fine=chords2)
+        out = Runner(space, indptr, indices, weights, piece, fine=chords2, like=like)
+        if share and key not in memo:
+            memo[key] = (indptr, indices, weights, chords2, gray2, out)
+        return out
 
     if not (isinstance(sharpen, (int, float)) and 0 <= sharpen <= 10):
         raise BadInput(f"sharpen {sharpen!r}; expected 0..10")
     for what, v in (("texture", texture), ("fine", fine)):
         if not (isinstance(v, (int, float)) and 0 <= v <= 1e6):
             raise BadInput(f"{what} {v!r}; expected 0..1000000")
-    target = draft_target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
-    if found is not None and FACE_SHARPEN:  # --face: the plan's target (not the draft's) sharpened more over the face
-        target = sharpened(pic.rgb, amount=float(sharpen) + FACE_SHARPEN * _face_share(weight, plain),
-                           sigma=SHARPEN[1])
+    target = sharpened(pic.rgb, amount=float(sharpen), sigma=SHARPEN[1])
     grid = draft_size(size)
     # the texture term is measured on light boards; on a dark one it stopped a light thread's moon at night after
     # 8 lines (tests/test_outputs_ours.py): there the mean colour alone (and the plan records the weight used)
     light = float(luminance(board)) >= 0.5
     texture, fine = (float(texture), float(fine)) if light else (0.0, 0.0)
-    work = runner(size, target, texture=texture, fine=fine)
-    start_err = work.piece.error()
+    face_target = None
+    if found is not None and FACE_SHARPEN:  # --face: the plan's target (not the draft's) sharpened more over the face
+        from .faces import face_share
+
+        face_target = sharpened(pic.rgb, amount=float(sharpen) + FACE_SHARPEN * face_share(weight, plain),
+                                sigma=SHARPEN[1])
+    # --face: the plan without the face and the plans with it laid on the draft's schedule, one kept by the
+    # planner's estimate of the score (.faces; it needs the fine luminance's cells)
+    with_face, face_plan = found is not None and grid != size and fine > 0, None
+    if with_face:
+        from .faces import lay_with_face
+        from .runs import draft_schedule, follow
+        from ..picture.face import face_weights
+
+        def lay(strength, n, schedule):
+            """The runs of ``schedule`` laid for ``n`` lines, the face's extra weight ``strength`` (None: none)."""
+            if strength is None:
+                r = runner(size, target, texture=texture, fine=fine, weight=plain, share=True)
+            else:
+                w = face_weights(found, crop=pic.crop, size=size, gray=pic.gray, times=plain, strength=strength)
+                r = runner(size, target if face_target is None else face_target, texture=texture, fine=fine,
+                           weight=w, share=True)
+            r.start_error = r.piece.error()
+            r.runs = follow(r, n, schedule, first=start_pin)
+            return r
+    else:
+        work = runner(size, target if face_target is None else face_target, texture=texture, fine=fine)
+        start_err = work.piece.error()
     t_setup = time.perf_counter()
     report("colour")
     if grid == size:
         runs = plan_runs(work, None, k, spool_changes=spool_changes, min_run=min_run, first=start_pin)
     else:
-        rgb = np.stack([resize_square(draft_target[..., c], grid) for c in range(3)], axis=-1)
+        rgb = np.stack([resize_square(target[..., c], grid) for c in range(3)], axis=-1)
         # the draft orders the colours by their mean alone (the texture there changed the order, not the SSIM),
         # and without the face's weights (--face: the schedule they gave cost the frame, Grace Hopper's blurred
         # SSIM -0.034 -> +0.005 against the plan without --face; docs/planner.md, "Faces", "In colour")
         draft = runner(grid, rgb, samples=DRAFT_SAMPLES, thicker=DRAFT_THICKER, texture=0.0, weight=plain)
-        runs = plan_runs(draft, lambda: work, k, spool_changes=spool_changes, thicker=DRAFT_THICKER,
-                         min_run=min_run, first=start_pin)
+        if with_face:
+            _, schedule = draft_schedule(draft, k, spool_changes=spool_changes, min_run=min_run,
+                                         thicker=DRAFT_THICKER)
+            work, face_plan = lay_with_face(lay, k, schedule, box=found.to_record()["box"], crop=pic.crop,
+                                            frame=frame, auto_lines=lines == "auto")
+            runs = work.runs
+            start_err = work.start_error
+        else:
+            runs = plan_runs(draft, lambda: work, k, spool_changes=spool_changes, thicker=DRAFT_THICKER,
+                             min_run=min_run, first=start_pin)
     layers = [Layer(colors[c], seq) for c, seq in runs if len(seq) >= 2]
     used = {lay.color for lay in layers}
     unused = [c for c in colors if c not in used]
@@ -242,6 +271,7 @@ def plan_colour(path, *, colors, background=WHITE, pins=300, frame="circle", siz
               "draft_size": draft_size(size), "sharpen": float(sharpen),
               "texture": texture, "fine": fine, "face": found and found.to_record(),
               **({"face_sharpen": FACE_SHARPEN} if found is not None else {}),
+              **({"face_plan": face_plan} if face_plan is not None else {}),
               "mono_lines_rule": auto_lines(pic.gray, mask)}
     per_colour = {c: {"lines": sum(len(lay.sequence) - 1 for lay in layers if lay.color == c),
                       "thread_diameters": round(thread_length(space.pin_xy, [ch for lay in layers if lay.color == c

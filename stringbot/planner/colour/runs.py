@@ -39,7 +39,7 @@ from ..progress import report
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Runner", "free_runs", "fit_schedule", "no_short_runs", "follow", "plan_runs", "RUN_DEFAULTS"]
+__all__ = ["Runner", "free_runs", "fit_schedule", "no_short_runs", "follow", "plan_runs", "draft_schedule", "RUN_DEFAULTS"]
 
 #: ``late``: the darkest thread's runs that start in the last this share of the lines join its run before
 #: (:func:`fit_schedule`)
@@ -114,12 +114,18 @@ class Runner:
     fine : (indptr, indices, weights), optional
         The chords on the piece's fine grid (a piece with :class:`~.model.Fine`): the steps judge them
         there, by ``piece.S2``.
+    like : Runner, optional
+        A runner on the same chords (and fine chords): its fans are shared (``--face``'s plans laid in turn).
     """
 
-    def __init__(self, space, indptr, indices, weights, piece, *, min_loop=RUN_DEFAULTS["min_loop"], fine=None):
+    def __init__(self, space, indptr, indices, weights, piece, *, min_loop=RUN_DEFAULTS["min_loop"], fine=None,
+                 like=None):
         self.space, self.piece, self.min_loop = space, piece, int(min_loop)
-        self.fans = _Fans(space, indptr, indices, weights) if fine is None else _Fans(space, *fine)
-        self.everywhere = _Everywhere(indptr, indices, weights)
+        if like is not None:        # the same chords: their fans (built as they are needed) shared
+            self.fans, self.everywhere = like.fans, like.everywhere
+        else:
+            self.fans = _Fans(space, indptr, indices, weights) if fine is None else _Fans(space, *fine)
+            self.everywhere = _Everywhere(indptr, indices, weights)
         self.laid = np.zeros((piece.K, space.m), dtype=bool)   # a chord is laid once in a colour
         self.laid |= space.span < space.pins // SHORT
         self.lines = 0
@@ -322,12 +328,20 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
     list of (int, list of int)
         ``(colour index, pin sequence)`` of each run, in winding order.
     """
+    runs, schedule = draft_schedule(draft, lines, spool_changes=spool_changes, min_run=min_run, thicker=thicker,
+                                    late=late)
+    if final is None and first is None and len(runs) <= spool_changes + 1:
+        return runs
+    return follow(final() if final is not None else draft.fresh(), lines, schedule, first=first)
+
+
+def draft_schedule(draft, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"], min_run=RUN_DEFAULTS["min_run"],
+                   thicker=1.0, late=RUN_DEFAULTS["late"]):
+    """``(the draft's runs, the schedule [(colour, lines)])`` of :func:`plan_runs` (its parameters)."""
     # the draft's thread may be ``thicker``: each of its chords then stands for as many of the plan's; a short
     # plan's draft still gives every colour a run (its runs at most a (2 K)-th of the lines)
     short = max(1, int(round(lines / thicker)))
     runs = free_runs(draft, short, min_run=max(1, min(int(round(min_run / thicker)), short // (2 * draft.piece.K))))
-    if final is None and first is None and len(runs) <= spool_changes + 1:
-        return runs
     lum = draft.piece.lum                   # the board's luminance, then each thread's
     schedule = fit_schedule(runs, spool_changes + 1, darkest=int(np.argmax(np.abs(lum[1:] - lum[0]))), late=late)
     total = sum(n for _, n in schedule)
@@ -335,4 +349,4 @@ def plan_runs(draft, final, lines, *, spool_changes=RUN_DEFAULTS["spool_changes"
         schedule = [(k, max(1, int(round(n * lines / total)))) for k, n in schedule]
         schedule = no_short_runs(schedule, min(int(min_run), lines // (2 * draft.piece.K)))
     log.info("colour: the draft's %d runs fitted to %d: %s", len(runs), len(schedule), schedule)
-    return follow(final() if final is not None else draft.fresh(), lines, schedule, first=first)
+    return runs, schedule
