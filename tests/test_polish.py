@@ -140,18 +140,24 @@ def test_a_change_replayed_in_a_copy_leaves_it_the_same_to_the_bit(undone):
         np.testing.assert_array_equal(a, b)
 
 
+def random_thread(space, steps, *, seed):
+    """A thread of ``steps`` random chords from pin 0 (every step a chord of ``space``)."""
+    rng = np.random.default_rng(seed)
+    seq = [0]
+    for _ in range(steps):
+        nxt = int(rng.integers(0, space.pins))
+        while space.index[seq[-1], nxt] < 0:
+            nxt = int(rng.integers(0, space.pins))
+        seq.append(nxt)
+    return seq
+
+
 def test_polish_never_makes_the_woven_picture_worse_and_keeps_one_thread():
     space = chord_space(60)
     g = horse_like()
     canvas, t, mask = canvas_for(g, space)
     # a deliberately poor start: chords everywhere
-    rng = np.random.default_rng(3)
-    seq = [0]
-    for _ in range(120):
-        nxt = int(rng.integers(0, 60))
-        while space.index[seq[-1], nxt] < 0:
-            nxt = int(rng.integers(0, 60))
-        seq.append(nxt)
+    seq = random_thread(space, 120, seed=3)
     chords0 = list(zip(seq[:-1], seq[1:]))
     e0 = brute_error(canvas, chords0, t, mask)
     out, stats = polish_plan(polished_canvas(t, mask, space, chords0), seq, space, budget=len(seq))
@@ -174,13 +180,7 @@ def test_rounds_of_reroutes_go_on_where_the_round_before_stopped():
     space = chord_space(60)
     g = horse_like()
     canvas, t, mask = canvas_for(g, space)
-    rng = np.random.default_rng(5)
-    seq = [0]
-    for _ in range(150):
-        nxt = int(rng.integers(0, 60))
-        while space.index[seq[-1], nxt] < 0:
-            nxt = int(rng.integers(0, 60))
-        seq.append(nxt)
+    seq = random_thread(space, 150, seed=5)
     chords0 = list(zip(seq[:-1], seq[1:]))
     budget = 40  # a part of the pins a round: the next round finds others (and the rerouted ones' neighbours)
     one, s1 = polish_plan(polished_canvas(t, mask, space, chords0), seq, space, budget=budget)
