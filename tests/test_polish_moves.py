@@ -15,19 +15,7 @@ from stringbot.planner.model.scoring import woven_error
 from stringbot.planner.picture.resample import resize_square
 
 from planner_helpers import picture
-from test_polish import horse_like, polished_canvas
-
-
-def _poor_start(space, n=120, seed=3):
-    """A deliberately poor thread: chords anywhere."""
-    rng = np.random.default_rng(seed)
-    seq = [0]
-    for _ in range(n):
-        nxt = int(rng.integers(0, space.pins))
-        while space.index[seq[-1], nxt] < 0:
-            nxt = int(rng.integers(0, space.pins))
-        seq.append(nxt)
-    return seq
+from test_polish import horse_like, polished_canvas, random_thread
 
 
 def test_the_passes_lower_the_error_of_the_plan_they_start_from_and_keep_one_thread():
@@ -35,7 +23,7 @@ def test_the_passes_lower_the_error_of_the_plan_they_start_from_and_keep_one_thr
     g = horse_like()
     mask = frame_mask(g.shape[0], "circle")
     t = np.where(mask, 1 - g / 255.0, 0.0)
-    seq = _poor_start(space)
+    seq = random_thread(space, 120, seed=3)  # a deliberately poor thread: chords anywhere
     chords0 = list(zip(seq[:-1], seq[1:]))
     woven = polished_canvas(t, mask, space, chords0)
     out = list(seq)

@@ -112,10 +112,10 @@ def lay_with_face(lay, lines, schedule, *, box, crop, frame, auto_lines=True, ca
                                 "face": round(est[0], 4), "frame": round(est[1], 4)})
         log.info("--face in colour: the face +%g, lines +%g %%: estimated SSIM face %.4f, frame %.4f (without the "
                  "face's weights: %.4f, %.4f)", strength, 100 * more, est[0], est[1], ref[0], ref[1])
-        if best is None or est[1] > best[2][1]:
+        level = est[1] >= ref[1]           # the frame not lower: kept at once
+        if level or best is None or est[1] > best[2][1]:
             best = (strength, more, est, runner)
-        if est[1] >= ref[1]:
-            best = (strength, more, est, runner)
+        if level:
             break
     strength, more, est, runner = best
     record.update(strength=strength, lines_more=more)
